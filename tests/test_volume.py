@@ -1,0 +1,114 @@
+"""Enclosed volume: derivatives, invariances, scaling and convergence to the ball volume."""
+
+import numpy as np
+import pytest
+
+from shellbuckle.energies.volume import Volume
+from shellbuckle.mesh import icosphere
+
+STEPS = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
+
+
+def _perturbed(X, rng, fraction=0.05):
+    h = 4.0 / np.sqrt(len(X))  # ~ edge length of a unit icosphere
+    return X + fraction * h * rng.standard_normal(X.shape)
+
+
+def _fd_gradient_error(value, gradient, X):
+    g = gradient(X).ravel()
+    errs = []
+    for h in STEPS:
+        fd = np.empty(X.size)
+        for i in range(X.size):
+            Xp, Xm = X.copy().ravel(), X.copy().ravel()
+            Xp[i] += h
+            Xm[i] -= h
+            fd[i] = (value(Xp.reshape(X.shape)) - value(Xm.reshape(X.shape))) / (2 * h)
+        errs.append(np.linalg.norm(fd - g) / np.linalg.norm(g))
+    return min(errs)
+
+
+def _fd_hessian_error(gradient, hessian, X):
+    H = hessian(X).toarray()
+    errs = []
+    for h in STEPS:
+        fd = np.empty_like(H)
+        for i in range(X.size):
+            Xp, Xm = X.copy().ravel(), X.copy().ravel()
+            Xp[i] += h
+            Xm[i] -= h
+            fd[:, i] = (gradient(Xp.reshape(X.shape)) - gradient(Xm.reshape(X.shape))).ravel() / (2 * h)
+        errs.append(np.linalg.norm(fd - H) / np.linalg.norm(H))
+    return min(errs)
+
+
+def _random_rotation(rng):
+    Q, R = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q = Q * np.sign(np.diag(R))
+    return Q if np.linalg.det(Q) > 0 else -Q
+
+
+@pytest.fixture
+def perturbed():
+    m = icosphere(2)
+    return m, _perturbed(m.X, np.random.default_rng(13))
+
+
+def test_gradient_and_hessian_match_finite_differences(perturbed):
+    m, X = perturbed
+    vol = Volume(m.faces, m.n_vertices)
+    assert _fd_gradient_error(vol.value, vol.gradient, X) < 1e-6
+    assert _fd_hessian_error(vol.gradient, vol.hessian, X) < 1e-6
+    H = vol.hessian(X)
+    assert abs(H - H.T).max() <= 1e-12 * abs(H).max()
+
+
+def test_invariant_under_rigid_motions(perturbed):
+    m, X = perturbed
+    rng = np.random.default_rng(17)
+    vol = Volume(m.faces, m.n_vertices)
+    R, c = _random_rotation(rng), 3.0 * rng.standard_normal(3)
+    Y = X @ R.T + c
+    assert vol.value(Y) == pytest.approx(vol.value(X), rel=1e-12)
+    np.testing.assert_allclose(vol.gradient(Y), vol.gradient(X) @ R.T, atol=1e-12)
+    Rb = np.kron(np.eye(m.n_vertices), R)
+    np.testing.assert_allclose(vol.hessian(Y).toarray(), Rb @ vol.hessian(X).toarray() @ Rb.T,
+                               atol=1e-11)
+
+
+def test_scaling_and_euler_homogeneity(perturbed):
+    """V(sX) = s^3 V(X); for a degree-3 homogeneous function sum_v x_v . grad_v = 3 V and
+    H X = 2 grad."""
+    m, X = perturbed
+    vol = Volume(m.faces, m.n_vertices)
+    for s in (0.5, 1.3, 2.0):
+        assert vol.value(s * X) == pytest.approx(s ** 3 * vol.value(X), rel=1e-13)
+    g = vol.gradient(X)
+    assert np.sum(X * g) == pytest.approx(3 * vol.value(X), rel=1e-13)
+    np.testing.assert_allclose(vol.hessian(X) @ X.ravel(), 2 * g.ravel(), atol=1e-12)
+
+
+def test_gradient_of_a_sphere_is_its_area_vector():
+    """dV/dx_v = (1/3) sum of the area vectors (x1-x0)x(x2-x0)/2 of the faces around v, which on
+    a fine sphere points radially with the vertex's share of area."""
+    m = icosphere(8)
+    g = Volume(m.faces, m.n_vertices).gradient(m.X)
+    radial = np.einsum("ij,ij->i", g, m.X)
+    assert np.linalg.norm(g - radial[:, None] * m.X) < 1e-2 * np.linalg.norm(g)
+    assert radial.sum() == pytest.approx(4 * np.pi, rel=1e-2)
+
+
+def test_icosphere_volume_converges_to_the_ball_at_second_order():
+    ns = np.array([4, 8, 16, 32])
+    errors = np.array([4 / 3 * np.pi - Volume(m.faces, m.n_vertices).value(m.X)
+                       for m in (icosphere(int(n)) for n in ns)])
+    assert (errors > 0).all()  # inscribed polyhedron
+    slope = np.polyfit(np.log(1.0 / ns), np.log(errors), 1)[0]
+    assert slope == pytest.approx(2.0, abs=0.1)
+    assert errors[-1] < 1e-2
+
+
+def test_reversed_orientation_gives_the_negative_volume():
+    m = icosphere(3)
+    assert Volume(m.faces[:, ::-1].copy(), m.n_vertices).value(m.X) == pytest.approx(
+        -Volume(m.faces, m.n_vertices).value(m.X), rel=1e-14)
