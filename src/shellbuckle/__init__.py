@@ -9,3 +9,4 @@ spontaneous curvature c0 = 2/R (the paper's "c0 = 1/R" is a mean curvature).
 __version__ = "0.1.0"
 
 from .params import ShellParameters  # noqa: E402
+from . import theory  # noqa: E402
