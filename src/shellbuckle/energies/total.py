@@ -1,0 +1,81 @@
+"""The shell's elastic energy: membrane stretching plus bending, built from parameters.
+
+``ShellEnergy`` is itself an energy term (value / gradient / Hessian) and keeps its two parts
+so that runs can report ``E_stretch`` and ``E_bend`` separately. Units: lengths in R, energies
+in the units of kappa (kappa = 1 unless a material is given); ``A = gamma kappa / R^2``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .bending import Bending
+from .stretching import Stretching
+
+BENDING_KINDS = ("juelicher", "evolver")
+"""Bending discretizations: Jülicher's edge-based mean curvature (default) and Surface
+Evolver's ``star_perp_sq_mean_curvature``."""
+
+
+def make_bending(kind: str, mesh, kappa: float, c0: float):
+    """Bending term of kind ``"juelicher"`` (default) or ``"evolver"``."""
+    if kind == "juelicher":
+        return Bending.from_mesh(mesh, kappa=kappa, c0=c0)
+    if kind == "evolver":
+        from .evolver_bending import StarPerpBending
+
+        return StarPerpBending.from_mesh(mesh, kappa=kappa, c0=c0)
+    raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {kind!r}")
+
+
+def with_c0(bending, c0: float):
+    """The bending term with spontaneous curvature ``c0`` (convention c = c1 + c2)."""
+    if hasattr(bending, "with_c0"):
+        return bending.with_c0(c0)
+    return dataclasses.replace(bending, c0=c0)
+
+
+@dataclass(frozen=True, eq=False)
+class ShellEnergy:
+    """``E = E_stretch + E_bend`` (Quilliet et al. 2008, eq. 1, Gaussian term omitted)."""
+
+    stretching: Stretching
+    bending: object
+
+    @classmethod
+    def build(cls, mesh, params, *, bending: str = "juelicher", c0: float | None = None,
+              reference=None) -> "ShellEnergy":
+        """Energy of ``mesh`` for :class:`~shellbuckle.params.ShellParameters` ``params``.
+
+        The stretching rest state is ``reference`` (positions, default ``mesh.X``: the
+        stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere).
+        """
+        X0 = mesh.X if reference is None else np.asarray(reference, float)
+        t = mesh.topology
+        c0 = 2.0 / params.R if c0 is None else float(c0)
+        stretching = Stretching.from_reference(X0, t.faces, t.n_vertices, params.A, params.nu)
+        return cls(stretching, make_bending(bending, mesh, params.kappa, c0))
+
+    @property
+    def c0(self) -> float:
+        return self.bending.c0
+
+    def with_c0(self, c0: float) -> "ShellEnergy":
+        return ShellEnergy(self.stretching, with_c0(self.bending, c0))
+
+    def parts(self, X) -> dict:
+        """``{"E_stretch": ..., "E_bend": ...}`` at positions ``X``."""
+        return {"E_stretch": self.stretching.value(X), "E_bend": self.bending.value(X)}
+
+    def value(self, X) -> float:
+        return float(self.stretching.value(X) + self.bending.value(X))
+
+    def gradient(self, X) -> np.ndarray:
+        return self.stretching.gradient(X) + self.bending.gradient(X)
+
+    def hessian(self, X) -> sp.csr_matrix:
+        return (self.stretching.hessian(X) + self.bending.hessian(X)).tocsr()

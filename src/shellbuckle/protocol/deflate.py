@@ -1,0 +1,197 @@
+"""The paper's numerical experiment: stepwise deflation with minimization at each step.
+
+Protocol (Quilliet et al., EPJE 27, 13 (2008), §4.1), one volume step ``k``:
+
+1. the target volume becomes ``V0 (1 - dV/V_k)`` (steps of ``dv = 0.0190 V0`` by default);
+2. jiggle: seeded Gaussian vertex displacements (:mod:`shellbuckle.protocol.jiggle`);
+3. minimize the elastic energy at fixed volume with ``c0 = 2/R`` (stress-free sphere); the
+   energy reached is ``E_before_c0_cycle``;
+4. zero-spontaneous-curvature cycle (on by default): ``c0 -> 0``, minimize, ``c0 -> 2/R``,
+   minimize. Without it the paper finds multi-dimple "potato" shapes;
+5. measure self-contact; stop at self-intersection of the surface (the paper stopped at 7-11 %
+   of V0) or at the end of the schedule.
+
+The init/step pair follows JAX MD: ``ctx, state = init(mesh, params, protocol)`` then
+``state, record = step(ctx, state)``. A state is the step index and the positions only; the
+random stream of step ``k`` depends on ``(seed, k)`` alone, so a run resumed from its last
+stored step computes exactly what an uninterrupted run computes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..energies.total import BENDING_KINDS, ShellEnergy
+from ..energies.volume import Volume
+from ..mesh.contact import ContactChecker
+from ..mesh.mesh import Mesh
+from ..solve import minimize
+from .jiggle import jiggle, mean_edge_length, step_rng
+from .schedule import PAPER_DV, check_schedule, linear_schedule
+
+log = logging.getLogger(__name__)
+
+METHODS = ("newton", "alternate", "cg", "gd")
+
+DEFAULT_JIGGLE = 0.01
+"""Default jiggle: Gaussian displacements of 1 % of the mean edge length per coordinate."""
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """How a run moves through volume and minimizes; stored with the run.
+
+    ``schedule``: target dV/V of steps 1, 2, ... (dV/V = 1 - V/V0, V0 the initial volume).
+    ``c0``: spontaneous curvature (c = c1 + c2), None for the stress-free ``2/R``.
+    ``c0_cycle``: the paper's zero-curvature cycle at each step. ``jiggle``: amplitude as a
+    fraction of the mean edge length. ``method``: minimizer (``newton``, ``alternate`` = CG
+    then Newton as in the paper, ``cg``, ``gd``). ``stop_at_contact``: stop when the surface
+    intersects itself. ``tol``: relative projected-gradient tolerance of the minimizer.
+    """
+
+    schedule: tuple
+    c0: float | None = None
+    c0_cycle: bool = True
+    jiggle: float = DEFAULT_JIGGLE
+    seed: int = 0
+    bending: str = "juelicher"
+    method: str = "newton"
+    stop_at_contact: bool = True
+    tol: float = 1e-9
+    max_iter: int = 200
+
+    def __post_init__(self):
+        object.__setattr__(self, "schedule", tuple(float(x) for x in check_schedule(self.schedule)))
+        if self.bending not in BENDING_KINDS:
+            raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {self.bending!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if not (np.isfinite(self.jiggle) and 0 <= self.jiggle <= 0.5):
+            raise ValueError(f"jiggle amplitude must be in [0, 0.5] (fraction of the mean edge "
+                             f"length), got {self.jiggle!r}")
+        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
+            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        if self.c0 is not None and not np.isfinite(self.c0):
+            raise ValueError(f"c0 must be finite, got {self.c0!r}")
+        if not (0 < self.tol < 1e-2):
+            raise ValueError(f"tol must be in (0, 1e-2), got {self.tol!r}")
+
+    @classmethod
+    def paper(cls, dv: float = PAPER_DV, until: float = 0.95, **options) -> "Protocol":
+        """The paper's protocol: steps of ``dv`` up to ``until`` (or self-contact)."""
+        return cls(schedule=tuple(linear_schedule(dv, until)), **options)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self) | {"schedule": list(self.schedule)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Protocol":
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in data.items() if k in names})
+
+
+@dataclass(frozen=True)
+class State:
+    """Where a run is: the last finished step and its positions; ``stopped`` says why it ended."""
+
+    step: int
+    X: np.ndarray
+    stopped: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Context:
+    """Everything fixed during a run: mesh, parameters, protocol, energy, constraint, contact."""
+
+    mesh: Mesh
+    params: object
+    protocol: Protocol
+    energy: ShellEnergy
+    volume: Volume
+    V0: float
+    contact: ContactChecker
+    c0: float = field(default=2.0)
+
+
+def init(mesh: Mesh, params, protocol: Protocol, reference=None):
+    """Build the run context and the step-0 state (the initial mesh)."""
+    c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
+    X0 = mesh.X if reference is None else np.asarray(reference, float)
+    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X0)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    V0 = volume.value(X0)
+    if not V0 > 0:
+        raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
+                         "be oriented outward")
+    ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
+                  V0=V0, contact=ContactChecker(mesh.topology), c0=c0)
+    return ctx, State(step=0, X=np.array(mesh.X, float))
+
+
+def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before=None,
+            iterations=0, wall_s=0.0) -> dict:
+    """The per-step record (SPEC §7 columns) of the conformation ``X``."""
+    parts = ctx.energy.parts(X)
+    E = parts["E_stretch"] + parts["E_bend"]
+    contact = ctx.contact.check(X)
+    dV = 1.0 - ctx.volume.value(X) / ctx.V0
+    return {
+        "target_dV_over_V": float(target), "dV_over_V": float(dV),
+        "E_total": float(E), "E_bend": float(parts["E_bend"]),
+        "E_stretch": float(parts["E_stretch"]), "E_over_kappa": float(E / ctx.params.kappa),
+        "E_before_c0_cycle": float(E if E_before is None else E_before),
+        "pressure": float(result.pressure) if result is not None else 0.0,
+        "grad_norm": float(result.grad_norm) if result is not None else 0.0,
+        "iterations": int(iterations),
+        "inertia": int(result.inertia) if result is not None and result.inertia is not None else -1,
+        "min_distance": float(contact.min_distance), "wall_s": float(wall_s),
+        "self_intersecting": bool(contact.intersects),
+        "converged": bool(result.success) if result is not None else True,
+        "c0": float(ctx.c0),
+    }
+
+
+def _minimize(ctx: Context, energy, X, V_target):
+    p = ctx.protocol
+    return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
+                    max_iter=p.max_iter)
+
+
+def step(ctx: Context, state: State):
+    """One volume step: jiggle, minimize, c0 cycle, measure. Returns ``(state, record)``."""
+    p = ctx.protocol
+    k = state.step + 1
+    if k > len(p.schedule):
+        raise ValueError(f"the schedule has {len(p.schedule)} steps; step {k} does not exist")
+    t0 = time.perf_counter()
+    target = p.schedule[k - 1]
+    V_target = ctx.V0 * (1.0 - target)
+    X = jiggle(state.X, ctx.mesh.topology.edges, p.jiggle, step_rng(p.seed, k))
+    result = _minimize(ctx, ctx.energy, X, V_target)
+    iterations = result.nit
+    E_before = result.fun
+    if p.c0_cycle:
+        flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target)
+        result = _minimize(ctx, ctx.energy, flat.x, V_target)
+        iterations += flat.nit + result.nit
+    if not result.success:
+        log.warning("step %d: minimizer did not converge: %s", k, result.message)
+    record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
+                     wall_s=time.perf_counter() - t0)
+    record["step"] = k
+    stopped = None
+    if p.stop_at_contact and record["self_intersecting"]:
+        stopped = f"self-intersection at step {k} (dV/V = {record['dV_over_V']:.4f})"
+    elif k == len(p.schedule):
+        stopped = f"end of the schedule (dV/V = {record['dV_over_V']:.4f})"
+    return State(step=k, X=result.x, stopped=stopped), record
+
+
+def mesh_scale(mesh: Mesh) -> float:
+    """Mean edge length of a mesh (sets the jiggle and the contact scale)."""
+    return mean_edge_length(mesh.X, mesh.topology.edges)

@@ -1,0 +1,59 @@
+"""Volume schedules: the sequence of target relative volume changes dV/V, one per step.
+
+``dV/V = (V0 - V) / V0`` where ``V0`` is the volume of the initial (stress-free) mesh, so
+deflation increases dV/V and re-inflation decreases it. The paper's protocol uses steps of
+``dv = 0.0190`` (Quilliet et al. 2008, §4.1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+PAPER_DV = 0.0190
+"""Volume step of the paper, as a fraction of the initial volume V0."""
+
+MAX_DV_OVER_V = 0.99
+"""Largest target dV/V accepted: the enclosed volume must stay positive."""
+
+
+def linear_schedule(dv: float = PAPER_DV, until: float = 0.95, start: float = 0.0) -> np.ndarray:
+    """Targets ``start + dv, start + 2 dv, ...`` up to ``until`` (included when it falls on a step).
+
+    ``dv < 0`` with ``until < start`` gives a re-inflation schedule.
+    """
+    dv, until, start = _real("dv", dv), _real("until", until), _real("start", start)
+    if dv == 0:
+        raise ValueError("dv (volume step / V0) must be non-zero, got 0")
+    if abs(dv) > 0.5:
+        raise ValueError(f"dv (volume step / V0) must be in [-0.5, 0.5] \\ {{0}}, got {dv!r}")
+    if (until - start) * dv <= 0:
+        direction = "larger" if dv > 0 else "smaller"
+        raise ValueError(f"until = {until!r} must be {direction} than the start dV/V = {start!r} "
+                         f"for dv = {dv!r}")
+    n = int(math.floor((until - start) / dv + 1e-9))
+    return check_schedule(start + dv * np.arange(1, n + 1))
+
+
+def check_schedule(targets) -> np.ndarray:
+    """Validate a list of target dV/V values; each must be finite and below ``MAX_DV_OVER_V``."""
+    targets = np.atleast_1d(np.asarray(targets, dtype=float))
+    if targets.ndim != 1 or len(targets) == 0:
+        raise ValueError("a volume schedule must be a non-empty list of target dV/V values")
+    bad = ~np.isfinite(targets) | (targets >= MAX_DV_OVER_V) | (targets <= -1.0)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"target dV/V number {k + 1} is {targets[k]!r}; each target must lie in "
+                         f"(-1, {MAX_DV_OVER_V}) (dV/V = 1 - V/V0)")
+    return targets
+
+
+def _real(name, value) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return value

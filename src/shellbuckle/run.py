@@ -1,0 +1,205 @@
+"""Durable runs: the deflation protocol driven step by step into a run store.
+
+``deflate`` creates (or reopens, to resume) a run folder and writes every finished step to it
+atomically before the next begins, so Ctrl-C or ``kill -9`` loses at most the step in progress;
+``resume`` continues a stored run from its last finished step and, because the random stream of
+a step depends only on the seed and the step index, ends with exactly the table of an
+uninterrupted run. ``continue_from`` starts a new run from any stored step with another volume
+schedule (re-inflation, arbitrary paths) while keeping the original stress-free reference.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from .mesh.mesh import Mesh
+from .params import ShellParameters
+from .protocol import deflate as protocol_mod
+from .protocol.deflate import Protocol, State
+from .protocol.schedule import PAPER_DV
+from .store.run import RunStore
+
+log = logging.getLogger(__name__)
+
+
+class Run:
+    """A stored run: parameters, protocol, per-step table and conformations.
+
+    ``table`` is a pandas DataFrame with the SPEC §7 columns; ``positions(k)`` the vertex
+    positions of step ``k``; ``mesh(k)`` a :class:`~shellbuckle.mesh.Mesh` of step ``k``.
+    """
+
+    def __init__(self, store: RunStore):
+        self.store = store
+
+    @classmethod
+    def open(cls, path) -> "Run":
+        return cls(RunStore.open(path))
+
+    @property
+    def path(self) -> Path:
+        return self.store.path
+
+    @property
+    def params(self) -> ShellParameters:
+        return ShellParameters.from_dict(self.store.params)
+
+    @property
+    def protocol(self) -> Protocol:
+        return Protocol.from_dict(self.store.protocol)
+
+    @property
+    def table(self):
+        return self.store.table()
+
+    @property
+    def steps(self) -> list[int]:
+        return self.store.steps
+
+    @property
+    def faces(self) -> np.ndarray:
+        return self.store.faces
+
+    def positions(self, k: int = -1) -> np.ndarray:
+        steps = self.store.steps
+        return self.store.positions(steps[k] if k < 0 else k)
+
+    def mesh(self, k: int = -1) -> Mesh:
+        return Mesh.from_arrays(self.positions(k), self.store.faces)
+
+    @property
+    def status(self) -> str:
+        return self.store.status
+
+    def __repr__(self):
+        return f"Run({str(self.path)!r}, status={self.status!r}, steps={len(self.steps)})"
+
+
+def default_out(params: ShellParameters, seed: int) -> Path:
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"gamma{params.gamma:g}_nu{params.nu:.3g}_seed{seed}_{stamp}"
+
+
+def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
+            dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
+            jiggle: float = protocol_mod.DEFAULT_JIGGLE, seed: int = 0,
+            bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
+            stop_at_contact: bool = True, c0: float | None = None, out=None,
+            progress: bool = False, max_steps: int | None = None) -> Run:
+    """Deflate a shell with the paper's protocol and store every step in ``out``.
+
+    ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
+    ``seed``); ``params`` to gamma = 2333, nu = 1/3. The schedule is ``dv, 2 dv, ...`` up to
+    ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
+    this same run it is resumed; if it holds a different run a ``ValueError`` says so.
+    ``max_steps`` stops after that many new steps (the run stays resumable).
+    """
+    from .mesh.random_sphere import random_sphere
+
+    params = params or ShellParameters.from_gamma(2333.0, nu=1.0 / 3.0)
+    mesh = mesh or random_sphere(3594, seed=seed)
+    options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, seed=seed, bending=bending,
+                   method=method, tol=tol, stop_at_contact=stop_at_contact)
+    if schedule is None:
+        protocol = Protocol.paper(dv=dv, until=until, **options)
+    else:
+        protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)
+    out = Path(out) if out is not None else default_out(params, seed)
+    store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
+                            X0=mesh.X, faces=mesh.faces)
+    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+
+
+def resume(path, *, progress: bool = False, max_steps: int | None = None) -> Run:
+    """Continue a stored run from its last finished step."""
+    store = RunStore.open(path)
+    params = ShellParameters.from_dict(store.params)
+    protocol = Protocol.from_dict(store.protocol)
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    store = RunStore.create(path, params=store.params, protocol=store.protocol, X0=store.X0,
+                            faces=store.faces, rest=store.rest)
+    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+
+
+def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
+                  until: float | None = None, progress: bool = False, **options) -> Run:
+    """A new run in ``out`` starting from step ``step`` of ``run`` with a new volume schedule.
+
+    Give ``schedule`` (target dV/V list), or ``dv`` and ``until`` (``dv < 0`` re-inflates).
+    Other protocol options default to the parent's. The stress-free reference stays the
+    parent's initial sphere.
+    """
+    parent = run if isinstance(run, Run) else Run.open(run)
+    base = parent.protocol
+    start = float(parent.store.record(step)["dV_over_V"])
+    if schedule is None:
+        if dv is None or until is None:
+            raise ValueError("give either schedule=[...] or both dv and until")
+        from .protocol.schedule import linear_schedule
+
+        schedule = linear_schedule(dv, until, start=start)
+    fields = base.to_dict() | options | {"schedule": list(np.atleast_1d(schedule))}
+    protocol = Protocol.from_dict(fields)
+    store = parent.store.branch(out, step, protocol=protocol.to_dict())
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    return _drive(store, mesh, parent.params, protocol, progress=progress)
+
+
+def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
+           max_steps: int | None) -> Run:
+    ctx, state = protocol_mod.init(mesh, params, protocol)
+    try:
+        last = store.last_step
+        if last is None:
+            record = protocol_mod.measure(ctx, state.X, 0.0)
+            store.append_step(0, state.X, record)
+        else:
+            state = State(step=last, X=store.positions(last))
+            record = store.record(last)
+            if record.get("self_intersecting") and protocol.stop_at_contact:
+                state = State(step=last, X=state.X, stopped="self-intersection")
+            elif last >= len(protocol.schedule):
+                state = State(step=last, X=state.X, stopped="end of the schedule")
+        bar = _progress(progress, len(protocol.schedule), state.step)
+        done = 0
+        while state.stopped is None and (max_steps is None or done < max_steps):
+            state, record = protocol_mod.step(ctx, state)
+            store.append_step(state.step, state.X, record)
+            done += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} E/k={record['E_over_kappa']:.4g} "
+                                    f"p={record['pressure']:.4g}")
+            log.info("step %d: dV/V = %.4f, E = %.6g, p = %.6g, %d it, %.2f s", state.step,
+                     record["dV_over_V"], record["E_total"], record["pressure"],
+                     record["iterations"], record["wall_s"])
+        if bar is not None:
+            bar.close()
+        if state.stopped is not None:
+            store.set_status("finished", state.stopped)
+        else:
+            store.set_status("paused", f"stopped after {done} new steps; resume to continue")
+    except KeyboardInterrupt:
+        store.set_status("interrupted", f"interrupted after step {store.last_step}; "
+                         f"`shellbuckle resume {store.path}` continues it")
+        store.close()
+        raise
+    except Exception as exc:
+        store.set_status("failed", f"{type(exc).__name__}: {exc}")
+        store.close()
+        raise
+    store.close()
+    return Run(RunStore.open(store.path))
+
+
+def _progress(enabled: bool, total: int, initial: int):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, unit="step", desc="deflation", dynamic_ncols=True)
