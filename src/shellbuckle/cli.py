@@ -22,8 +22,102 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _register_table(sub) -> None:
+    """``shellbuckle table DIR [--csv]``: the per-step table of a run (SPEC §7 columns)."""
+    parser = sub.add_parser(
+        "table", help="print the per-step table of a run",
+        description="Print the per-step table of the run folder DIR: one row per finished "
+                    "step, columns step, target_dV_over_V, dV_over_V, E_total, E_bend, "
+                    "E_stretch, E_over_kappa, E_before_c0_cycle, pressure, grad_norm, "
+                    "iterations, inertia, min_distance, wall_s, then analysis columns.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("--csv", action="store_true",
+                        help="print CSV (full precision) instead of aligned columns")
+
+    def run(args) -> int:
+        import pandas as pd
+
+        from .store import RunStore
+
+        table = RunStore.open(args.dir).table()
+        if args.csv:
+            sys.stdout.write(table.to_csv(index=False, lineterminator="\n"))
+        elif table.empty:
+            sys.stdout.write("  ".join(table.columns) + "\n(no finished step yet)\n")
+        else:
+            def cell(v) -> str:
+                if v is None or v is pd.NA or (isinstance(v, float) and v != v):
+                    return "-"
+                return f"{v:.6g}" if isinstance(v, float) else str(v)
+            shown = pd.DataFrame({c: [cell(v) for v in table[c].astype(object)]
+                                  for c in table.columns})
+            sys.stdout.write(shown.to_string(index=False) + "\n")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
+def _register_theory(sub) -> None:
+    """``shellbuckle theory [--gamma G] [--nu NU] [--out PATH] [--json]``: paper §3 theory."""
+    parser = sub.add_parser(
+        "theory", help="plot the paper's theory curves and print the buckling estimates",
+        description="Plot U_sphere (small strain and exact), U_axisym and the crossing of "
+                    "Quilliet et al. (2008) section 3 against dV/V, write the figure, and print "
+                    "d/R, the crossing U_sphere = U_axisym and the classical threshold. "
+                    "Energies in units of kappa, pressures in kappa/R^3.")
+    parser.add_argument("--gamma", type=float, default=2333.0,
+                        help="Foppl-von Karman number A R^2/kappa, > 0 (default 2333)")
+    parser.add_argument("--nu", type=float, default=1.0 / 3.0,
+                        help="2D Poisson ratio in (-1, 1/2) (default 1/3, incompressible)")
+    parser.add_argument("--out", default="shellbuckle_theory.png",
+                        help="figure file, .png or .pdf (default shellbuckle_theory.png)")
+    parser.add_argument("--json", action="store_true",
+                        help="print the numbers as one JSON object")
+
+    def run(args) -> int:
+        import json
+        import warnings
+        from pathlib import Path
+
+        from .params import ShellParameters
+        from .plots.theory import plot_theory
+        from .theory import summary
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            params = ShellParameters.from_gamma(args.gamma, nu=args.nu)
+        for w in caught:
+            print(f"shellbuckle theory: warning: {w.message}", file=sys.stderr)
+        out = Path(args.out)
+        if not out.parent.is_dir():
+            raise FileNotFoundError(f"--out: directory {str(out.parent)!r} does not exist")
+        plot_theory(params, path=out)
+        info = summary(params)
+        if args.json:
+            print(json.dumps({**info, "figure": str(out)}))
+            return 0
+        print(params.describe().splitlines()[0])
+        xc = info["crossing_dV_over_V"]
+        if xc is None:
+            print("crossing U_sphere = U_axisym: none (U_axisym > U_sphere for all dV/V)")
+        else:
+            pref = info["crossing_asymptotic_dV_over_V"] * params.gamma ** 0.6
+            print(f"crossing U_sphere = U_axisym: dV/V = {xc:.4g} "
+                  f"(exact Green-Lagrange sphere: {info['crossing_dV_over_V_exact_sphere']:.4g}; "
+                  f"thin-shell law {pref:.4g} gamma^(-3/5) = "
+                  f"{info['crossing_asymptotic_dV_over_V']:.4g})")
+        print(f"classical threshold: p_c = 4 sqrt(kappa A)/R^2 = "
+              f"{info['classical_pressure']:.4g} kappa/R^3, dV/V = 6(1-nu)/sqrt(gamma) = "
+              f"{info['classical_dV_over_V']:.4g} "
+              f"(exact pressure-volume relation: {info['classical_dV_over_V_exact']:.4g})")
+        print(f"figure: {out}")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
 # Each entry adds one sub-command: register(subparsers) -> sets ``func`` via set_defaults.
-_COMMANDS: list = []
+_COMMANDS: list = [_register_table, _register_theory]
 
 
 def main(argv=None) -> int:
