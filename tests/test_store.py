@@ -256,9 +256,7 @@ def test_sigkill_inside_a_step_write_keeps_the_previous_steps_and_resumes(tmp_pa
     store = RunStore.open(folder)
     assert store.steps == [0, 1, 2, 3]
     assert all(store.positions(k).tobytes() == _positions(k).tobytes() for k in range(4))
-    with RunStore.create(folder, params={"gamma": 271.0}, protocol={"dv": 0.019},
-                         X0=_positions(0), faces=np.arange(3 * (20000 // 3)).reshape(-1, 3)
-                         ) as resumed:
+    with RunStore.resume(folder) as resumed:
         assert not partial[0].exists()  # cleaned by the resuming writer
         resumed.append_step(4, _positions(4), {"dV_over_V": 0.019 * 4, "E_total": 4 / 3})
     assert RunStore.open(folder).positions(4).tobytes() == _positions(4).tobytes()
@@ -314,6 +312,8 @@ def test_refusals_of_bad_paths_and_bad_steps(tmp_path):
     (tmp_path / "busy" / "notes.txt").write_text("mine")
     with pytest.raises(ValueError, match="non-empty folder that is not a shellbuckle run"):
         _create(tmp_path / "busy")
+    with pytest.raises(ValueError, match="not a shellbuckle run folder"):
+        RunStore.resume(tmp_path / "busy")
     for bad, message in [(tmp_path / "missing", "does not exist"),
                          (tmp_path / "afile", "is a file"),
                          (tmp_path / "busy", "not a shellbuckle run folder")]:
@@ -377,6 +377,10 @@ def test_branch_starts_from_the_parent_step_and_resumes(tmp_path):
         child.close()
         with parent.branch(tmp_path / "child", 2, protocol=inflate) as again:
             assert again.steps == [0, 1] and again.run_id == child.run_id
+        with RunStore.resume(tmp_path / "child") as again:  # resume needs no identity
+            again.append_step(2, parent.X0, _record(2))
+            again.set_status("paused", "stopped after 1 new step")
+        assert RunStore.open(tmp_path / "child").status == "paused"
         with pytest.raises(ValueError, match=r"parent\.step: stored 2, requested 1"):
             parent.branch(tmp_path / "child", 1, protocol=inflate)
         with pytest.raises(ValueError, match="holds a different run"):

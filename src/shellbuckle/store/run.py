@@ -5,7 +5,8 @@ Layout of a run folder ``DIR`` (format ``shellbuckle-run``, version 1)::
     DIR/run.json              what the run is: format + version, run id, creation time,
                               parameters, protocol, mesh size and hash, package and
                               dependency versions, platform, command line of every session,
-                              status (running / finished / failed / interrupted) + message,
+                              status (running / paused / finished / failed / interrupted)
+                              + message,
                               parent run and step for a branch
     DIR/mesh.h5               reference mesh, written once: X0 (V, 3) float64 initial
                               positions, faces (F, 3) int64, group rest/ with the rest-state
@@ -87,7 +88,7 @@ TABLE_COLUMNS = ("step", "target_dV_over_V", "dV_over_V", "E_total", "E_bend", "
                  "inertia", "min_distance", "wall_s")
 #: Analysis columns of SPEC §7, placed after TABLE_COLUMNS when any step has them.
 ANALYSIS_COLUMNS = ("shape", "n_dimples", "corners", "W")
-STATUSES = ("running", "finished", "failed", "interrupted")
+STATUSES = ("running", "paused", "finished", "failed", "interrupted")
 
 RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
 TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
@@ -310,10 +311,12 @@ def _integer_like(column: pd.Series) -> bool:
 
 
 class RunStore:
-    """A run folder (see the module docstring); use :meth:`create`, :meth:`open`, :meth:`branch`.
+    """A run folder (see the module docstring): :meth:`create`, :meth:`open`, :meth:`resume`,
+    :meth:`branch`.
 
     A store opened with :meth:`open` reads; its first write (``append_step``, ``set_status``)
-    takes the writer lock. :meth:`create` returns a store that already holds it. Use it as a
+    takes the writer lock. :meth:`create`, :meth:`resume` and :meth:`branch` return a store
+    that already holds it. Use it as a
     context manager, or call :meth:`close`, to release the lock.
     """
 
@@ -393,12 +396,27 @@ class RunStore:
             raise ValueError(f"{path} holds a different run ({shown}); choose another folder "
                              f"with --out, or continue the stored run with `shellbuckle "
                              f"resume {path}`")
-        store._take_writer_lock()
-        store._meta["sessions"].append(_session())
-        store._meta.update(status="running", message=None, updated=_now())
-        store._write_meta()
-        log.info("resuming run %s in %s after step %s", store.run_id, path, store.last_step)
+        store._start_session()
         return store
+
+    @classmethod
+    def resume(cls, path) -> "RunStore":
+        """Reopen the run in ``path`` for writing, whatever it is (a branch too).
+
+        Takes the writer lock (ValueError if a live process holds it), removes stale
+        temporaries, records a new session and sets the status to "running"; the caller
+        continues after :attr:`last_step` with :attr:`params` and :attr:`protocol`.
+        """
+        store = cls.open(path)
+        store._start_session()
+        return store
+
+    def _start_session(self) -> None:
+        self._take_writer_lock()
+        self._meta["sessions"].append(_session())
+        self._meta.update(status="running", message=None, updated=_now())
+        self._write_meta()
+        log.info("resuming run %s in %s after step %s", self.run_id, self._path, self.last_step)
 
     def branch(self, new_path, from_step: int, *, params: Mapping | None = None,
                protocol: Mapping | None = None,
@@ -684,7 +702,12 @@ class RunStore:
     # ------------------------------------------------------------------ status and writing
 
     def set_status(self, status: str, message: str | None = None) -> None:
-        """Record the run's status (running, finished, failed, interrupted) and a message."""
+        """Record the run's status and a message.
+
+        Statuses: running, paused (stopped on purpose, resumable), finished, failed,
+        interrupted (Ctrl-C). A run killed outright keeps "running" with no live writer
+        (see :attr:`writer_active`).
+        """
         if status not in STATUSES:
             raise ValueError(f"status {status!r} is not one of {', '.join(STATUSES)}")
         if message is not None and not isinstance(message, str):
