@@ -150,7 +150,7 @@ def test_small_alpha_form_at_fixed_thickness(p):
     assert T.U_axisym(1e-4, p) / T.U_axisym_asymptotic(1e-4, p) > 100
 
 
-# --- crossing and classical threshold ---------------------------------------------------------------
+# --- crossing and classical threshold ------------------------------------------------------
 
 @pytest.mark.parametrize("p", PARAMS)
 @pytest.mark.parametrize("sphere", ["small_strain", "exact"])

@@ -1,4 +1,4 @@
-"""Shell parameters: the Foppl-von Karman number gamma and the 2D Poisson ratio nu, or a 3D material.
+"""Shell parameters: Foppl-von Karman number gamma and 2D Poisson ratio nu, or a 3D material.
 
 The model (Quilliet et al., EPJE 27, 13 (2008), section 3) has three surface moduli: the bending
 modulus ``kappa``, the 2D Young modulus ``A`` and the 2D Poisson ratio ``nu``. Conformations
@@ -54,7 +54,7 @@ def thickness_factor(nu):
 def _check_nu_for_thickness(nu) -> np.ndarray:
     nu = np.asarray(nu, dtype=float)
     if not np.all(np.isfinite(nu)) or np.any(nu <= -1.0) or np.any(nu >= 0.5):
-        bad = nu[~(np.isfinite(nu) & (nu > -1.0) & (nu < 0.5))].ravel()[0]
+        bad = float(nu[~(np.isfinite(nu) & (nu > -1.0) & (nu < 0.5))].ravel()[0])
         raise ValueError(
             f"d/R is undefined for nu = {bad!r}: gamma = 12 (1 - 2 nu^2/(1-nu)) (R/d)^2 needs "
             f"1 - 2 nu^2/(1-nu) > 0, i.e. -1 < nu < 1/2")
@@ -69,8 +69,10 @@ def d_over_R(gamma, nu=1.0 / 3.0):
     scalar input.
     """
     gamma = np.asarray(gamma, dtype=float)
-    if not np.all(np.isfinite(gamma)) or np.any(gamma <= 0):
-        raise ValueError(f"gamma must be a finite number > 0, got {gamma!r}")
+    bad = ~(np.isfinite(gamma) & (gamma > 0))
+    if np.any(bad):
+        first = float(gamma[bad].ravel()[0])
+        raise ValueError(f"gamma must be a finite number > 0, got {first!r}")
     nu = _check_nu_for_thickness(nu)
     out = np.sqrt(12.0 * thickness_factor(nu) / gamma)
     return float(out) if out.ndim == 0 else out
@@ -80,8 +82,10 @@ def gamma_from_d_over_R(d_over_R, nu=1.0 / 3.0):
     """Foppl-von Karman number ``gamma = 12 (1 - 2 nu^2/(1 - nu)) (R/d)^2`` (paper eq.
     DefFvK_lambda, vectorized). ``0 < d/R < 1`` and ``-1 < nu < 1/2``."""
     ratio = np.asarray(d_over_R, dtype=float)
-    if not np.all(np.isfinite(ratio)) or np.any(ratio <= 0) or np.any(ratio >= 1):
-        raise ValueError(f"d_over_R must be a number in (0, 1), got {d_over_R!r}")
+    bad = ~(np.isfinite(ratio) & (ratio > 0) & (ratio < 1))
+    if np.any(bad):
+        first = float(ratio[bad].ravel()[0])
+        raise ValueError(f"d_over_R must be a number in (0, 1), got {first!r}")
     nu = _check_nu_for_thickness(nu)
     out = 12.0 * thickness_factor(nu) / ratio ** 2
     return float(out) if out.ndim == 0 else out

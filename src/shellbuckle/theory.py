@@ -45,7 +45,7 @@ def _checked(name: str, value, lo: float, hi: float, *, lo_open=False, hi_open=F
     ok = np.isfinite(arr) & ((arr > lo) if lo_open else (arr >= lo))
     ok &= (arr < hi) if hi_open else (arr <= hi)
     if not np.all(ok):
-        bad = arr[~ok].ravel()[0]
+        bad = float(arr[~ok].ravel()[0])
         interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
         raise ValueError(f"{name} must be in {interval}, got {bad!r}")
     return arr
