@@ -117,12 +117,10 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
 
 def resume(path, *, progress: bool = False, max_steps: int | None = None) -> Run:
     """Continue a stored run from its last finished step."""
-    store = RunStore.open(path)
+    store = RunStore.resume(path)
     params = ShellParameters.from_dict(store.params)
     protocol = Protocol.from_dict(store.protocol)
     mesh = Mesh.from_arrays(store.X0, store.faces)
-    store = RunStore.create(path, params=store.params, protocol=store.protocol, X0=store.X0,
-                            faces=store.faces, rest=store.rest)
     return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
 
 
