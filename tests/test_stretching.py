@@ -73,6 +73,21 @@ def test_hessian_matches_finite_differences_of_gradient(strained, nu):
     assert _fd_hessian_error(st.gradient, st.hessian, X) < 1e-6
 
 
+def test_open_patch_derivatives_match_finite_differences():
+    """A surface with a boundary (a spherical cap) goes through the general assembly path."""
+    rng = np.random.default_rng(19)
+    m = icosphere(2)
+    keep = m.faces[m.X[m.faces].mean(axis=1)[:, 2] > 0.2]
+    used, faces = np.unique(keep, return_inverse=True)
+    faces = faces.reshape(-1, 3)
+    X_rest = _perturbed(m.X[used], rng)
+    X = _perturbed(0.95 * m.X[used], rng)
+    st = Stretching.from_reference(X_rest, faces, len(used), A=1.0, nu=0.3)
+    assert not st._assembler.closed
+    assert _fd_gradient_error(st.value, st.gradient, X) < 1e-6
+    assert _fd_hessian_error(st.gradient, st.hessian, X) < 1e-6
+
+
 def test_hessian_is_symmetric_and_kills_translations(strained):
     m, X_rest, X = strained
     st = Stretching.from_reference(X_rest, m.faces, m.n_vertices, A=1.0, nu=0.3)
@@ -108,6 +123,49 @@ def test_invariant_under_rigid_motions(strained):
     # the rest shape may itself be moved rigidly: nothing changes
     st2 = Stretching.from_reference(X_rest @ R.T + c, m.faces, m.n_vertices, A=1.0, nu=1 / 3)
     assert st2.value(X) == pytest.approx(st.value(X), rel=1e-12)
+
+
+def test_energy_equals_surface_evolver_formula_face_by_face(strained):
+    """Surface Evolver manual, method linear_elastic: S = Gram matrix of the unstrained facet,
+    Q = S^-1, F = Gram matrix of the strained facet, C = (F Q - I)/2, energy density
+    (1/2/(1+v)) (Tr(C^2) + v (Tr C)^2 / (1 - v)) times the modulus, integrated over the
+    unstrained area sqrt(det S)/2. Evaluated here with plain 2x2 matrix algebra."""
+    m, X_rest, X = strained
+    A, nu = 1.9, 0.37
+    st = Stretching.from_reference(X_rest, m.faces, m.n_vertices, A=A, nu=nu)
+
+    def gram(Y):
+        s = Y[m.faces[:, 1]] - Y[m.faces[:, 0]]
+        t = Y[m.faces[:, 2]] - Y[m.faces[:, 0]]
+        edges = np.stack([s, t], axis=2)  # (F, 3, 2)
+        return edges.transpose(0, 2, 1) @ edges
+
+    S, Fg = gram(X_rest), gram(X)
+    C = (Fg @ np.linalg.inv(S) - np.eye(2)) / 2
+    trC = np.trace(C, axis1=1, axis2=2)
+    density = A / (2 * (1 + nu)) * (np.trace(C @ C, axis1=1, axis2=2) + nu * trC ** 2 / (1 - nu))
+    np.testing.assert_allclose(st.density(X), density, rtol=1e-11, atol=1e-15)
+    np.testing.assert_allclose(st.rest_area, np.sqrt(np.linalg.det(S)) / 2, rtol=1e-13)
+    assert st.value(X) == pytest.approx(np.dot(density, np.sqrt(np.linalg.det(S)) / 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_affine_deformation_of_a_triangle_matches_the_papers_elasticity_tensor(seed):
+    """Quilliet et al. (2008) eq. (1) with K_xxxx = K_yyyy = A/(1-nu^2),
+    K_xxyy = K_yyxx = nu A/(1-nu^2), K_xyxy = K_yxyx = A/(1+nu): the energy density
+    1/2 eps_ij K_ijkl eps_kl of the Green-Lagrange strain eps = (M^T M - I)/2 of the affine
+    map x = M X applied to a unit right triangle in the (x, y) plane (rest area 1/2)."""
+    rng = np.random.default_rng(seed)
+    A, nu = 3.0, rng.uniform(-0.9, 0.9)
+    X_rest = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    M = np.eye(3, 2) + 0.3 * rng.standard_normal((3, 2))
+    X = X_rest[:, :2] @ M.T + rng.standard_normal(3)
+    eps = (M.T @ M - np.eye(2)) / 2
+    k1, k2, k3 = A / (1 - nu ** 2), nu * A / (1 - nu ** 2), A / (1 + nu)
+    w = 0.5 * (k1 * (eps[0, 0] ** 2 + eps[1, 1] ** 2) + 2 * k2 * eps[0, 0] * eps[1, 1]
+               + k3 * (eps[0, 1] ** 2 + eps[1, 0] ** 2))
+    st = Stretching.from_reference(X_rest, np.array([[0, 1, 2]]), 3, A=A, nu=nu)
+    assert st.value(X) == pytest.approx(0.5 * w, rel=1e-12)
 
 
 @pytest.mark.parametrize("n", [2, 5])
