@@ -19,16 +19,18 @@ __all__ = ["MinimizeResult", "QDLDLSolver", "SingularFactorError", "SuperLUSolve
 METHODS = ("newton", "cg", "gd", "alternate")
 
 
-def minimize(energy, volume, X0, V_target, method: str = "newton", *, cg_iter: int = 20,
-             cg_options: dict | None = None, **options) -> MinimizeResult:
+def minimize(energy, volume, X0, V_target, method: str = "newton", *, tol: float | None = None,
+             cg_iter: int = 20, cg_options: dict | None = None, **options) -> MinimizeResult:
     """Minimize ``energy`` at ``volume(X) = V_target`` from ``X0 (V, 3)``.
 
     ``method``: ``"newton"`` (:func:`newton`), ``"cg"`` (:func:`conjugate_gradient`), ``"gd"``
     (:func:`gradient_descent`), or ``"alternate"``: ``cg_iter`` conjugate-gradient iterations
     (options ``cg_options``) to relax cheaply, then Newton to convergence (the paper
     alternated Surface Evolver's gradient and Hessian steps). ``options`` go to the chosen
-    method (to Newton for ``"alternate"``).
+    method (to Newton for ``"alternate"``); ``tol`` is a shorthand for ``tol_grad``.
     """
+    if tol is not None:
+        options["tol_grad"] = tol
     if method == "newton":
         return newton(energy, volume, X0, V_target, **options)
     if method == "cg":

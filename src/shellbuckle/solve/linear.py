@@ -20,6 +20,13 @@ Backends
 Matrix Anal. Appl. 17, 886 (1996)). There is no numerical pivoting, so the ordering must not
 meet a zero pivot: the Newton method removes the rigid-motion null space before factoring.
 
+``PardisoSolver`` (optional, needs Intel MKL, e.g. the ``mkl`` wheel): PARDISO's supernodal
+``L D L^T`` for symmetric indefinite matrices (``mtype = -2``) with Bunch–Kaufman pivoting
+inside supernodes, METIS nested-dissection ordering and pivot perturbation ``1e-8``; it
+reports the inertia itself (Schenk & Gärtner, Future Gener. Comput. Syst. 20, 475 (2004)).
+It is one to two orders of magnitude faster than QDLDL on shell Hessians of a few thousand
+vertices (BLAS-3 supernodes). It runs on one thread so that results are reproducible.
+
 ``SuperLUSolver``: SciPy's ``splu`` in symmetric mode with diagonal pivoting only
 (``diag_pivot_thresh=0``) and a minimum-degree ordering of ``A + A^T``; then
 ``L U = P A P^T`` and ``diag(U) = D``. If SuperLU had to take an off-diagonal pivot
@@ -126,7 +133,121 @@ class SuperLUSolver:
         return self._signs
 
 
-_BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver}
+def _load_mkl():
+    """The MKL runtime library (``libmkl_rt``) through ctypes, or ``None``."""
+    import ctypes
+    import ctypes.util
+    import glob
+    import os
+    import sys
+
+    names = [os.environ.get("SHELLBUCKLE_MKL_RT"), ctypes.util.find_library("mkl_rt")]
+    for prefix in {sys.prefix, sys.base_prefix}:
+        names += sorted(glob.glob(os.path.join(prefix, "lib", "libmkl_rt.so*")), key=len)
+        names += sorted(glob.glob(os.path.join(prefix, "Library", "bin", "mkl_rt*.dll")), key=len)
+    for name in names:
+        if name:
+            try:
+                return ctypes.CDLL(name)
+            except OSError:
+                continue
+    return None
+
+
+class PardisoSolver:
+    """MKL PARDISO symmetric-indefinite ``L D L^T`` (``mtype = -2``) through ctypes."""
+
+    name = "pardiso"
+    _MTYPE = -2
+
+    def __init__(self, n_threads: int = 1):
+        import ctypes
+
+        self._ct = ctypes
+        self._mkl = _load_mkl()
+        if self._mkl is None:
+            raise ValueError("the 'pardiso' linear solver needs Intel MKL (pip install mkl); "
+                             "use 'qdldl' or 'superlu' instead")
+        self._pardiso = self._mkl.pardiso
+        self._pardiso.restype = None
+        self.n_threads = int(n_threads)
+        self._pt = np.zeros(64, dtype=np.int64)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        self._iparm[[0, 1, 7, 9, 10, 12, 20, 34]] = [1, 2, 2, 8, 0, 0, 1, 1]
+        self._pattern = None
+        self._n = 0
+        self._signs = None
+        self.n_symbolic = 0
+        self.n_numeric = 0
+
+    def _call(self, phase: int, data, b=None, x=None) -> int:
+        ct = self._ct
+        i32 = ct.c_int32
+        err = i32(0)
+        nrhs = 1
+        if b is None:
+            b = np.zeros(self._n)
+            x = np.zeros(self._n)
+        self._mkl.MKL_Domain_Set_Num_Threads(i32(self.n_threads), i32(4))  # 4: PARDISO domain
+        self._pardiso(self._pt.ctypes.data_as(ct.c_void_p), ct.byref(i32(1)), ct.byref(i32(1)),
+                      ct.byref(i32(self._MTYPE)), ct.byref(i32(phase)), ct.byref(i32(self._n)),
+                      data.ctypes.data_as(ct.c_void_p),
+                      self._pattern.indptr.ctypes.data_as(ct.c_void_p),
+                      self._pattern.indices.ctypes.data_as(ct.c_void_p),
+                      ct.c_void_p(), ct.byref(i32(nrhs)), self._iparm.ctypes.data_as(ct.c_void_p),
+                      ct.byref(i32(0)), b.ctypes.data_as(ct.c_void_p),
+                      x.ctypes.data_as(ct.c_void_p), ct.byref(err))
+        return err.value
+
+    def _release(self):
+        if self._pattern is not None:
+            self._call(-1, np.zeros(1))
+            self._pattern = None
+
+    def __del__(self):
+        try:
+            self._release()
+        except Exception:  # interpreter shutdown: the library may already be gone
+            pass
+
+    def factor(self, A) -> None:
+        upper = sp.triu(A, format="csr")
+        upper.sort_indices()
+        upper.indptr = upper.indptr.astype(np.int32)
+        upper.indices = upper.indices.astype(np.int32)
+        data = np.ascontiguousarray(upper.data, dtype=np.float64)
+        self._signs = None
+        if not _same_pattern(upper, self._pattern):
+            self._release()
+            self._pattern, self._n = upper, upper.shape[0]
+            err = self._call(11, data)
+            if err:
+                self._pattern = None
+                raise SingularFactorError(f"PARDISO analysis failed (error {err})")
+            self.n_symbolic += 1
+        self._data = data  # PARDISO reads the values again for iterative refinement in solve
+        err = self._call(22, data)
+        self.n_numeric += 1
+        if err:
+            raise SingularFactorError(f"PARDISO factorization failed (error {err})")
+        n_pos, n_neg = int(self._iparm[21]), int(self._iparm[22])
+        self._signs = (n_pos, n_neg, self._n - n_pos - n_neg)
+        if self._signs[2]:
+            raise SingularFactorError(f"{self._signs[2]} zero pivot(s) in the PARDISO factorization")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.array(b, dtype=np.float64)
+        x = np.zeros_like(b)
+        err = self._call(33, self._data, b, x)
+        if err:
+            raise SingularFactorError(f"PARDISO solve failed (error {err})")
+        return x
+
+    def inertia(self) -> tuple[int, int, int]:
+        return self._signs
+
+
+_BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoSolver}
 
 
 def make_solver(solver=None):

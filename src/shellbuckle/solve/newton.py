@@ -66,8 +66,8 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from .linear import SingularFactorError, make_solver
-from .linesearch import (RestoredPath, backtracking, check_problem, curvature_search,
-                         mean_edge_length, projected_gradient, restore_volume)
+from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
+                         curvature_search, mean_edge_length, projected_gradient, restore_volume)
 from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
@@ -288,7 +288,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
 
         with clock("line_search"):
             step = _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d,
-                                max_step, edge)
+                                max_step, edge, r_norm)
         if step is None:
             if grad_ok:
                 success, message = True, "converged (no further decrease within round-off)"
@@ -331,11 +331,23 @@ def _negative_curvature(solve, K, free, n_dofs, rng, n_iter):
     return d, curv
 
 
-def _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d, max_step, edge):
+def _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d, max_step, edge,
+                 r_norm):
     """Backtracking on the (shifted) Newton step and, if given, a curvature search along the
-    negative-curvature direction ``d``; returns ``(kind, alpha, E, X)`` of the lower energy."""
+    negative-curvature direction ``d``; returns ``(kind, alpha, E, X)`` of the lower energy.
+
+    When the predicted decrease ``-r.s`` is below the energy's evaluation noise
+    (``ENERGY_NOISE |E|``), a full step is accepted if the energy stays within that noise and
+    the projected gradient decreases (see :mod:`.linesearch`)."""
     candidates = []
     alpha0 = min(1.0, max_step / max(_max_displacement(s), np.finfo(float).tiny))
+    noise = ENERGY_NOISE * abs(E)
+    if d is None and -slope_s <= noise:
+        E1, X1 = RestoredPath(energy, volume, X, s, V_target)(alpha0)
+        if X1 is not None and E1 <= E + noise:
+            r1 = projected_gradient(energy.gradient(X1), volume.gradient(X1))[1]
+            if np.linalg.norm(r1) < r_norm:
+                return "newton", alpha0, E1, X1
     found = backtracking(RestoredPath(energy, volume, X, s, V_target), E, slope_s, alpha0)
     if found is not None:
         candidates.append(("newton",) + found)

@@ -1,0 +1,77 @@
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from shellbuckle.solve.linear import (PardisoSolver, QDLDLSolver, SingularFactorError,
+                                      SuperLUSolver, _load_mkl, make_solver)
+
+BACKENDS = [QDLDLSolver, SuperLUSolver,
+            pytest.param(PardisoSolver, marks=pytest.mark.skipif(_load_mkl() is None,
+                                                                 reason="Intel MKL not installed"))]
+
+
+def _random_symmetric(n, seed, density=0.15):
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=density, random_state=seed)
+    return (A + A.T + sp.diags(2.0 * rng.standard_normal(n))).tocsc()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("seed", range(4))
+def test_inertia_and_solution_match_dense_linear_algebra(backend, seed):
+    A = _random_symmetric(40, seed)
+    eig = np.linalg.eigvalsh(A.toarray())
+    solver = backend()
+    solver.factor(A)
+    assert solver.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
+    b = np.random.default_rng(seed).standard_normal(40)
+    np.testing.assert_allclose(A @ solver.solve(b), b, atol=1e-10 * np.abs(b).max())
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kkt_inertia_is_tangent_inertia_plus_constraints(backend):
+    # Sylvester / Gould: inertia([[K, G], [G^T, 0]]) = inertia(Z^T K Z) + (m, m, 0)
+    rng = np.random.default_rng(5)
+    n, m = 30, 2
+    K = _random_symmetric(n, 7).toarray()
+    G = rng.standard_normal((n, m))
+    Z = np.linalg.svd(G.T)[2][m:].T  # orthonormal basis of null(G^T)
+    tangent = np.linalg.eigvalsh(Z.T @ K @ Z)
+    kkt = sp.csc_matrix(np.block([[K, G], [G.T, np.zeros((m, m))]]))
+    solver = backend()
+    solver.factor(kkt)
+    n_pos, n_neg, n_zero = solver.inertia()
+    assert n_neg == (tangent < 0).sum() + m and n_pos == (tangent > 0).sum() + m and n_zero == 0
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_symbolic_analysis_is_reused_for_an_unchanged_pattern(backend):
+    A = _random_symmetric(50, 11) + 10 * sp.eye(50)
+    B = A.copy()
+    B.data = B.data * np.linspace(0.5, 1.5, B.nnz)
+    B = (B + B.T) / 2  # same pattern, new values
+    solver = backend()
+    solver.factor(A.tocsc())
+    solver.factor(B.tocsc())
+    b = np.ones(50)
+    np.testing.assert_allclose(B @ solver.solve(b), b, atol=1e-10)
+    if backend is not SuperLUSolver:
+        assert solver.n_symbolic == 1 and solver.n_numeric == 2
+
+
+@pytest.mark.parametrize("backend", [QDLDLSolver, SuperLUSolver])
+def test_singular_matrix_raises(backend):
+    singular = sp.csc_matrix(np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))
+    with pytest.raises(SingularFactorError):
+        backend().factor(singular)
+
+
+def test_make_solver():
+    assert isinstance(make_solver(None), QDLDLSolver)
+    assert isinstance(make_solver("superlu"), SuperLUSolver)
+    s = SuperLUSolver()
+    assert make_solver(s) is s
+    with pytest.raises(ValueError, match="unknown linear solver 'umfpack'"):
+        make_solver("umfpack")
+    with pytest.raises(ValueError, match="lacks method"):
+        make_solver(object())

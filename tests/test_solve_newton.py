@@ -1,0 +1,155 @@
+"""Newton at fixed volume: constraint, stationarity, pressure = -dE/dV, monotonicity, saddles.
+
+Oracles: the KKT conditions recomputed from the energy terms; central differences of the
+minimum energy along a sequence of target volumes; the exact uniformly shrunk icosahedron
+(all twelve vertices equivalent, so uniform shrinking is an exact constrained equilibrium);
+dense eigenvalues of the constrained Hessian for the inertia.
+"""
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from shellbuckle.energies.total import ShellEnergy
+from shellbuckle.energies.volume import Volume
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.solve import minimize, newton
+from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
+from shellbuckle.solve.newton import pinned_dofs, rigid_modes
+from test_solve_energies import spring_shell
+
+
+def shell(n, gamma, nu=1.0 / 3.0, c0=None):
+    mesh = icosphere(n)
+    energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(gamma, nu=nu), c0=c0)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    return mesh, energy, volume, volume.value(mesh.X)
+
+
+def assert_kkt(energy, volume, res, V_target, rtol=1e-8):
+    gE, gV = energy.gradient(res.x), volume.gradient(res.x)
+    assert res.volume_error <= 1e-12
+    assert abs(volume.value(res.x) - V_target) <= 1e-12 * V_target
+    # grad E = lam grad V with lam = -pressure
+    assert np.linalg.norm(gE + res.pressure * gV) <= rtol * np.linalg.norm(gE) + 1e-10
+    lam, r = projected_gradient(gE, gV)
+    assert res.grad_norm == pytest.approx(np.linalg.norm(r), rel=1e-6, abs=1e-12)
+
+
+def tangent_inertia_dense(energy, volume, X):
+    """Negative eigenvalues of Hess E - lam Hess V on {grad V, rigid modes}^perp (dense)."""
+    gE, gV = energy.gradient(X), volume.gradient(X)
+    lam, _ = projected_gradient(gE, gV)
+    K = (energy.hessian(X) - lam * volume.hessian(X)).toarray()
+    C = np.column_stack([gV.ravel(), rigid_modes(X)])
+    Z = scipy.linalg.null_space(C.T)
+    ev = np.linalg.eigvalsh(Z.T @ K @ Z)
+    return int((ev < -1e-8 * np.abs(ev).max()).sum())
+
+
+@pytest.mark.parametrize("factor", [1.05, 0.97])
+def test_spring_shell_minimum_satisfies_kkt_conditions(factor):
+    mesh, energy = spring_shell(3, kb=0.01)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    V_target = factor * volume.value(mesh.X)
+    res = newton(energy, volume, mesh.X, V_target)
+    assert res.success and res.inertia == 0
+    assert_kkt(energy, volume, res, V_target)
+    # inflation stretches the springs: dE/dV > 0, i.e. negative (inward) pressure
+    assert np.sign(res.pressure) == (-1 if factor > 1 else 1)
+
+
+@pytest.mark.parametrize("solver", ["qdldl", "superlu"])
+def test_shell_minimum_before_buckling(solver):
+    mesh, energy, volume, V0 = shell(5, 2333)
+    V_target = 0.981 * V0
+    res = newton(energy, volume, mesh.X, V_target, solver=solver)
+    assert res.success and res.inertia == 0 and res.pressure > 0
+    assert_kkt(energy, volume, res, V_target)
+    assert tangent_inertia_dense(energy, volume, res.x) == 0
+    # the uniformly shrunk mesh is a feasible point, so the minimum cannot be above it
+    s = (V_target / V0) ** (1.0 / 3.0)
+    assert res.fun <= energy.value(s * mesh.X)
+
+
+@pytest.mark.parametrize("gamma", [100.0, 2333.0])
+def test_icosahedron_matches_exact_uniform_shrink(gamma):
+    # n = 1: all vertices equivalent, uniform shrinking is the exact constrained equilibrium;
+    # Green-Lagrange strain e = (s^2 - 1)/2 in every face, energy rest_area A e^2 / (1 - nu)
+    nu = 1.0 / 3.0
+    mesh, energy, volume, V0 = shell(1, gamma, nu)
+    dV = 0.019
+    s = (1.0 - dV) ** (1.0 / 3.0)
+    e = (s * s - 1.0) / 2.0
+    exact = energy.stretching.rest_area.sum() * gamma * e * e / (1.0 - nu) + energy.bending.value(s * mesh.X)
+    X0 = mesh.X + 0.01 * np.random.default_rng(0).standard_normal(mesh.X.shape)
+    res = newton(energy, volume, X0, (1.0 - dV) * V0)
+    assert res.success and res.inertia == 0
+    assert res.fun == pytest.approx(exact, rel=1e-12)
+
+
+def test_pressure_is_minus_derivative_of_minimum_energy():
+    mesh, energy, volume, V0 = shell(4, 2333)
+    V_t, h = 0.97 * V0, 1e-4
+    res = newton(energy, volume, mesh.X, V_t)
+    plus = newton(energy, volume, res.x, V_t * (1 + h))
+    minus = newton(energy, volume, res.x, V_t * (1 - h))
+    assert res.inertia == plus.inertia == minus.inertia == 0
+    dE_dV = (plus.fun - minus.fun) / (2 * h * V_t)
+    assert res.pressure == pytest.approx(-dE_dV, rel=1e-6)
+
+
+def test_newton_steps_never_raise_the_energy_at_fixed_volume():
+    mesh, energy, volume, V0 = shell(4, 1000)
+    X0 = (0.95 ** (1 / 3)) * mesh.X + 0.02 * np.random.default_rng(1).standard_normal(mesh.X.shape)
+    res = newton(energy, volume, X0, 0.95 * V0, history=True)
+    assert res.success
+    E = np.array([h["energy"] for h in res.history])
+    E0 = newton(energy, volume, X0, 0.95 * V0, max_iter=0).fun  # the start, on the constraint
+    steps = np.diff(np.concatenate([[E0], E]))
+    assert (steps <= ENERGY_NOISE * np.abs(E)).all()
+    big = np.abs(steps) > ENERGY_NOISE * np.abs(E)
+    assert (steps[big] < ENERGY_ROUNDOFF * np.abs(E)[big]).all()
+
+
+def test_newton_leaves_the_symmetric_saddle():
+    # gamma = 1000: classical threshold dV/V ~ 6 (1 - nu) / sqrt(gamma) = 0.13; at 0.3 the
+    # uniformly shrunk sphere is far past it and the symmetric branch is a saddle
+    mesh, energy, volume, V0 = shell(4, 1000)
+    X0 = (0.7 ** (1 / 3)) * mesh.X
+    stuck = newton(energy, volume, X0, 0.7 * V0, escape_saddles=False)
+    assert stuck.success and stuck.inertia > 0
+    assert tangent_inertia_dense(energy, volume, stuck.x) == stuck.inertia
+    res = newton(energy, volume, X0, 0.7 * V0)
+    assert res.success and res.inertia == 0
+    assert tangent_inertia_dense(energy, volume, res.x) == 0
+    assert res.fun < 0.9 * stuck.fun
+    assert_kkt(energy, volume, res, 0.7 * V0)
+
+
+def test_result_does_not_depend_on_a_rigid_motion_of_the_start():
+    mesh, energy, volume, V0 = shell(3, 500)
+    X0 = mesh.X + 0.02 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    Q = scipy.linalg.expm(np.array([[0, -0.3, 0.2], [0.3, 0, -0.5], [-0.2, 0.5, 0]]))
+    a = newton(energy, volume, X0, 0.96 * V0)
+    b = newton(energy, volume, X0 @ Q.T + [1.0, -2.0, 0.5], 0.96 * V0)
+    assert a.fun == pytest.approx(b.fun, rel=1e-10)
+    assert a.pressure == pytest.approx(b.pressure, rel=1e-8)
+
+
+def test_pinned_dofs_fix_the_rigid_gauge():
+    X = icosphere(3).X
+    pinned = pinned_dofs(X)
+    assert len(set(pinned)) == 6
+    assert np.linalg.matrix_rank(rigid_modes(X)[pinned]) == 6
+
+
+def test_bad_problem_is_refused():
+    mesh, energy, volume, V0 = shell(1, 100)
+    with pytest.raises(ValueError, match="V_target must be a positive finite volume"):
+        newton(energy, volume, mesh.X, -1.0)
+    with pytest.raises(ValueError, match=r"X0 must be a \(V, 3\) array"):
+        newton(energy, volume, mesh.X[:, :2], V0)
+    with pytest.raises(ValueError, match="unknown method"):
+        minimize(energy, volume, mesh.X, V0, method="bfgs")
