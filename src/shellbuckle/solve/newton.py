@@ -106,18 +106,39 @@ class KKTAssembler:
         self._K_indptr = self._K_indices = None
 
     def _analyse(self, K: sp.csr_matrix):
+        """Pattern and slots. ``K`` is symmetric with sorted indices, so its CSR rows are its
+        CSC columns; every column of the reduced KKT matrix is the kept part of a row of
+        ``K`` followed by one entry of ``g`` (row ``n``), and the last column holds ``g`` and
+        the zero corner. Missing diagonal entries of ``K`` (pruned zeros) are added."""
         n, n_dofs = self.n, K.shape[0]
         rows = np.repeat(np.arange(n_dofs), np.diff(K.indptr))
         a, b = self.new_index[rows], self.new_index[K.indices]
         self._keep = (a >= 0) & (b >= 0)
-        ar = np.arange(n)
-        R = np.concatenate([a[self._keep], ar, ar, np.full(n, n), [n]])
-        C = np.concatenate([b[self._keep], ar, np.full(n, n), ar, [n]])
-        unique, self._slot = np.unique(C * (n + 1) + R, return_inverse=True)
-        self._indices = (unique % (n + 1)).astype(np.int32)
+        a, b = a[self._keep], b[self._keep]
+        diag = a == b
+        if np.count_nonzero(diag) != n:  # add the missing diagonal entries: rebuild sorted
+            a_all = np.concatenate([a, np.arange(n)])
+            b_all = np.concatenate([b, np.arange(n)])
+            unique, inverse = np.unique(a_all * n + b_all, return_inverse=True)
+            self._slot_K_src = inverse[:len(a)]
+            a, b = unique // n, unique % n
+            diag_pos = inverse[len(a_all) - n:]
+        else:
+            self._slot_K_src = np.arange(len(a))
+            diag_pos = np.flatnonzero(diag)
+        counts = np.bincount(a, minlength=n) + 1
         self._indptr = np.zeros(n + 2, dtype=np.int32)
-        np.cumsum(np.bincount(unique // (n + 1), minlength=n + 1), out=self._indptr[1:])
-        self._nnz = len(unique)
+        np.cumsum(np.append(counts, n + 1), out=self._indptr[1:])
+        self._nnz = int(self._indptr[-1])
+        entry_slot = np.arange(len(a)) + a  # one g entry closes every earlier column
+        self._slot_K = entry_slot[self._slot_K_src]
+        self._slot_diag = entry_slot[diag_pos]
+        self._slot_grow = self._indptr[1:n + 1] - 1
+        self._slot_gcol = self._indptr[n] + np.arange(n + 1)
+        self._indices = np.empty(self._nnz, dtype=np.int32)
+        self._indices[entry_slot] = b
+        self._indices[self._slot_grow] = n
+        self._indices[self._slot_gcol] = np.arange(n + 1)
         self._K_indptr, self._K_indices = K.indptr.copy(), K.indices.copy()
 
     def build(self, K: sp.csr_matrix, g: np.ndarray, mu: float) -> sp.csc_matrix:
@@ -126,8 +147,11 @@ class KKTAssembler:
                 and np.array_equal(K.indices, self._K_indices)):
             self._analyse(K)
         gf = g.ravel()[self.free]
-        values = np.concatenate([K.data[self._keep], np.full(self.n, mu), gf, gf, [0.0]])
-        data = np.bincount(self._slot, weights=values, minlength=self._nnz)
+        data = np.zeros(self._nnz)
+        data[self._slot_K] = K.data[self._keep]
+        data[self._slot_diag] += mu
+        data[self._slot_grow] = gf
+        data[self._slot_gcol[:-1]] = gf
         return sp.csc_matrix((data, self._indices, self._indptr), shape=(self.n + 1, self.n + 1))
 
 
