@@ -67,7 +67,9 @@ def test_singular_matrix_raises(backend):
 
 
 def test_make_solver():
-    assert isinstance(make_solver(None), QDLDLSolver)
+    auto = PardisoSolver if _load_mkl() is not None else QDLDLSolver
+    assert isinstance(make_solver(None), auto) and isinstance(make_solver("auto"), auto)
+    assert isinstance(make_solver("qdldl"), QDLDLSolver)
     assert isinstance(make_solver("superlu"), SuperLUSolver)
     s = SuperLUSolver()
     assert make_solver(s) is s

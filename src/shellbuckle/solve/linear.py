@@ -15,7 +15,10 @@ Every solver has the same three methods:
 
 Backends
 --------
-``QDLDLSolver`` (default): QDLDL's up-looking ``L D L^T`` with 1x1 pivots and an AMD ordering
+``make_solver()`` (the default everywhere) picks PARDISO when Intel MKL can be loaded and
+QDLDL otherwise ("auto"); name a backend to force it.
+
+``QDLDLSolver`` (always available, a package dependency): QDLDL's up-looking ``L D L^T`` with 1x1 pivots and an AMD ordering
 (Stellato et al., OSQP, Math. Prog. Comp. 12, 637 (2020); Amestoy, Davis & Duff, SIAM J.
 Matrix Anal. Appl. 17, 886 (1996)). There is no numerical pivoting, so the ordering must not
 meet a zero pivot: the Newton method removes the rigid-motion null space before factoring.
@@ -34,6 +37,8 @@ vertices (BLAS-3 supernodes). It runs on one thread so that results are reproduc
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import scipy.sparse as sp
@@ -133,6 +138,7 @@ class SuperLUSolver:
         return self._signs
 
 
+@functools.lru_cache(maxsize=None)
 def _load_mkl():
     """The MKL runtime library (``libmkl_rt``) through ctypes, or ``None``."""
     import ctypes
@@ -251,16 +257,18 @@ _BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoS
 
 
 def make_solver(solver=None):
-    """A linear solver from ``None`` (the default, QDLDL), a backend name, or a solver object.
+    """A linear solver from ``None`` or ``"auto"`` (PARDISO if Intel MKL loads, else QDLDL),
+    a backend name (``"qdldl"``, ``"superlu"``, ``"pardiso"``), or a solver object.
 
     A solver object is anything with ``factor``, ``solve`` and ``inertia`` methods as
     described in the module docstring; it is returned unchanged.
     """
-    if solver is None:
-        solver = "qdldl"
+    if solver is None or solver == "auto":
+        solver = "pardiso" if _load_mkl() is not None else "qdldl"
     if isinstance(solver, str):
         if solver not in _BACKENDS:
-            raise ValueError(f"unknown linear solver {solver!r}; choose one of {sorted(_BACKENDS)}")
+            raise ValueError(f"unknown linear solver {solver!r}; choose 'auto' or one of "
+                             f"{sorted(_BACKENDS)}")
         return _BACKENDS[solver]()
     missing = [m for m in ("factor", "solve", "inertia") if not callable(getattr(solver, m, None))]
     if missing:

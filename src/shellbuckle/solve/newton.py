@@ -190,9 +190,10 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         Enclosed volume to hold.
     tol_grad, atol_grad, tol_energy, max_iter :
         Convergence criteria, see the module docstring.
-    solver : None, "qdldl", "superlu" or a solver object
-        The sparse symmetric-indefinite factorization (:mod:`.linear`). Pass the same object
-        to successive calls to keep its symbolic analysis.
+    solver : None, "auto", "qdldl", "superlu", "pardiso" or a solver object
+        The sparse symmetric-indefinite factorization (:mod:`.linear`; default "auto":
+        PARDISO if Intel MKL loads, else QDLDL). Pass the same object to successive calls to
+        keep its symbolic analysis.
     project_rigid : bool
         Pin six dofs to remove the rigid-motion null space (needed for energies invariant
         under rigid motions, i.e. all shell energies).
