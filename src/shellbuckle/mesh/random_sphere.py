@@ -31,7 +31,8 @@ triangles ``(x_v, m_vw, c_f)`` where ``m_vw`` is the (spherical) midpoint of edg
 is taken flat; its signed area is measured along ``x_v``.
 
 Typical quality (see :func:`shellbuckle.mesh.mesh_quality`): minimum angle about 38 deg and
-edge-length relative spread about 0.09 at 3594 vertices, built in about a second.
+edge-length relative spread about 0.085 at 3594 vertices (36.6-39.2 deg over seeds 0-5),
+built in one to two seconds; 10k vertices in about 5 s, 40k in about 25 s.
 """
 
 from __future__ import annotations
