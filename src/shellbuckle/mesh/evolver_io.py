@@ -158,59 +158,80 @@ _COLORS = {"clear": -1, "transparent": -1, "black": 0, "blue": 1, "green": 2, "c
 
 
 def _parse_number(text: str) -> float:
-    if text[:2].lower() == "0x":
-        return float(int(text, 16))
-    return float(text.replace("d", "e").replace("D", "e"))
+    try:
+        return float(text)
+    except ValueError:
+        if text[:2].lower() == "0x":
+            return float(int(text, 16))
+        return float(text.replace("d", "e").replace("D", "e"))
 
 
-def _tokenize(text: str, where: str, macros: dict) -> list:
-    """Tokens of one logical line. A '+'/'-' preceded by whitespace (or the line start) and
-    followed by a digit makes a signed number, as in Evolver's lexer."""
+_TOKEN = re.compile(
+    r"(?P<ws>[ \t,;:\x1a\r]+)"
+    r'|(?P<str>"[^"]*")'
+    r"|(?P<num>0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?)"
+    r"|(?P<ident>[A-Za-z_][A-Za-z0-9_.]*)"
+    r"|(?P<op>" + "|".join(re.escape(op) for op in _OPERATORS) + ")")
+_PLAIN_NUMBERS = re.compile(r"[-+0-9.eE \t]+")
+
+
+def _tokenize(text: str, where: str, macros: dict, lists: bool = False) -> list:
+    """Tokens of one logical line.
+
+    With ``lists`` (element lines, where Evolver's lexer sets ``uminus_flag``), a sign preceded
+    by whitespace and outside parentheses starts a new expression, as in Evolver: ``-5`` or
+    ``+5`` becomes a signed number and ``-`` followed by a non-blank a leading (unary) minus, so
+    ``0 -1 -sqrt(2)`` is three values and ``0 - 1`` one. Elsewhere signs are ordinary operators.
+    """
+    if lists and _PLAIN_NUMBERS.fullmatch(text):  # fast path: a line of plain numbers
+        try:
+            return [_Tok("num", float(w), signed=w[0] in "+-") for w in text.split()]
+        except ValueError:
+            pass  # e.g. a lone '-': use the general scanner
     toks = []
     i, n = 0, len(text)
     after_space = True
+    parens = 0
     while i < n:
-        ch = text[i]
-        if ch in _WHITESPACE:
-            i += 1
+        m = _TOKEN.match(text, i)
+        if m is None:
+            if text[i] == '"':
+                raise ValueError(f"{where}: unterminated string")
+            raise ValueError(f"{where}: unexpected character {text[i]!r}")
+        kind, word = m.lastgroup, m.group()
+        i = m.end()
+        if kind == "ws":
             after_space = True
             continue
-        if ch == '"':
-            j = text.find('"', i + 1)
-            if j < 0:
-                raise ValueError(f"{where}: unterminated string")
-            toks.append(_Tok("str", text[i + 1:j]))
-            i = j + 1
-        elif ch in "+-" and after_space and i + 1 < n and (text[i + 1].isdigit() or text[i + 1] == "."):
-            m = _NUMBER.match(text, i + 1)
-            if m is None:
-                raise ValueError(f"{where}: cannot read a number at {text[i:i + 20]!r}")
-            value = _parse_number(m.group())
-            toks.append(_Tok("num", -value if ch == "-" else value, signed=True))
-            i = m.end()
-        elif ch.isdigit() or (ch == "." and i + 1 < n and text[i + 1].isdigit()):
-            m = _NUMBER.match(text, i)
-            toks.append(_Tok("num", _parse_number(m.group())))
-            i = m.end()
-            if i < n and text[i] in "bB" and re.fullmatch(r"[01]+", m.group()):
-                toks[-1] = _Tok("num", float(int(m.group(), 2)))  # binary 1011b
+        if kind == "str":
+            toks.append(_Tok("str", word[1:-1]))
+        elif kind == "num":
+            if i < n and text[i] in "bB" and re.fullmatch(r"[01]+", word):
+                toks.append(_Tok("num", float(int(word, 2))))  # binary 1011b
                 i += 1
-        elif ch.isalpha() or ch == "_":
-            m = _IDENT.match(text, i)
-            word = m.group()
-            i = m.end()
+            else:
+                toks.append(_Tok("num", _parse_number(word)))
+        elif kind == "ident":
             if word in macros:
-                toks.extend(_tokenize(macros[word], where, {k: v for k, v in macros.items() if k != word}))
+                toks.extend(_tokenize(macros[word], where,
+                                      {k: v for k, v in macros.items() if k != word}, lists))
             else:
                 toks.append(_Tok("ident", word))
         else:
-            for op in _OPERATORS:
-                if text.startswith(op, i):
-                    toks.append(_Tok("op", op))
-                    i += len(op)
-                    break
-            else:
-                raise ValueError(f"{where}: unexpected character {ch!r}")
+            if lists and word in "+-" and after_space and parens == 0 and i < n:
+                nxt = _TOKEN.match(text, i)
+                if nxt is not None and nxt.lastgroup == "num":
+                    value = _parse_number(nxt.group())
+                    toks.append(_Tok("num", -value if word == "-" else value, signed=True))
+                    i = nxt.end()
+                    after_space = False
+                    continue
+                if word == "-" and text[i] not in _WHITESPACE:
+                    toks.append(_Tok("op", "-", signed=True))  # leading minus of a new expression
+                    after_space = False
+                    continue
+            toks.append(_Tok("op", word))
+            parens += (word == "(") - (word == ")")
         after_space = False
     return toks
 
@@ -233,7 +254,7 @@ class _Expr:
 
     def expr(self):
         value = self.term()
-        while self.is_op("+", "-"):
+        while self.is_op("+", "-") and not self.peek().signed:
             op = self.toks[self.pos].value
             self.pos += 1
             rhs = self.term()
@@ -324,6 +345,44 @@ def _eval(toks, pos, params, where):
     return ev.expr(), ev.pos
 
 
+def _strip_line(raw: str, in_block: bool):
+    """Remove ``//`` and ``/* */`` comments (outside double quotes) from one physical line.
+
+    Returns the text and whether a block comment is still open at the end of the line."""
+    if not in_block and "/" not in raw:
+        return raw, False
+    out = []
+    i, n = 0, len(raw)
+    in_str = False
+    while i < n:
+        if in_block:
+            j = raw.find("*/", i)
+            if j < 0:
+                break
+            in_block = False
+            i = j + 2
+            out.append(" ")
+            continue
+        ch = raw[i]
+        if in_str:
+            out.append(ch)
+            in_str = not (ch == '"' and raw[i - 1] != "\\")
+            i += 1
+        elif ch == '"':
+            in_str = True
+            out.append(ch)
+            i += 1
+        elif raw.startswith("//", i):
+            break
+        elif raw.startswith("/*", i):
+            in_block = True
+            i += 2
+        else:
+            out.append(ch)
+            i += 1
+    return "".join(out), in_block
+
+
 def _strip_comments(lines, path_label):
     """Yield ``(line_number, text)`` with comments removed and ``\\``-spliced lines joined.
 
@@ -333,38 +392,8 @@ def _strip_comments(lines, path_label):
     in_block = False
     pending, pending_no = "", None
     for no, raw in enumerate(lines, start=1):
-        out = []
-        i, n = 0, len(raw)
-        in_str = False
-        while i < n:
-            if in_block:
-                j = raw.find("*/", i)
-                if j < 0:
-                    i = n
-                    break
-                in_block = False
-                i = j + 2
-                out.append(" ")
-                continue
-            ch = raw[i]
-            if in_str:
-                out.append(ch)
-                if ch == '"' and raw[i - 1] != "\\":
-                    in_str = False
-                i += 1
-            elif ch == '"':
-                in_str = True
-                out.append(ch)
-                i += 1
-            elif raw.startswith("//", i):
-                break
-            elif raw.startswith("/*", i):
-                in_block = True
-                i += 2
-            else:
-                out.append(ch)
-                i += 1
-        text = "".join(out).rstrip()
+        text, in_block = _strip_line(raw, in_block)
+        text = text.rstrip()
         if pending_no is None:
             pending_no = no
         if text.endswith("\\"):
@@ -468,7 +497,7 @@ class _Parser:
                     raise ValueError(f"{where}: unexpected text after {words[0]!r}: {words[1]!r}")
                 section = new
                 continue
-            toks = _tokenize(text, where, self.macros)
+            toks = _tokenize(text, where, self.macros, lists=section != "top")
             if section == "top":
                 opened = stripped.count("{") - stripped.count("}")
                 if opened > 0 or (toks and toks[0].kind == "ident"
