@@ -167,8 +167,144 @@ def _register_evolver_energy(sub) -> None:
     parser.set_defaults(func=run)
 
 
+def _add_material_options(parser) -> None:
+    group = parser.add_argument_group("shell parameters (either gamma and nu, or a 3D material)")
+    group.add_argument("--gamma", type=float, help="Foppl-von Karman number A R^2/kappa (default 2333)")
+    group.add_argument("--nu", type=float, help="2D Poisson ratio (default 1/3)")
+    group.add_argument("--E", type=float, help="3D Young modulus of the material")
+    group.add_argument("--sigma", type=float, help="3D Poisson ratio of the material, in (-1, 0.5]")
+    group.add_argument("--d", type=float, help="shell thickness")
+    group.add_argument("--R", type=float, help="shell radius (with --E --sigma --d)")
+
+
+def _params_from_args(args, default_gamma=2333.0, fallback=None):
+    from .params import ShellParameters
+
+    material = [args.E, args.sigma, args.d, args.R]
+    if any(v is not None for v in material):
+        if any(v is None for v in material):
+            raise ValueError("a material needs all of --E, --sigma, --d and --R")
+        if args.gamma is not None or args.nu is not None:
+            raise ValueError("give either --gamma/--nu or the material --E --sigma --d --R, not both")
+        return ShellParameters.from_material(args.E, args.sigma, args.d, args.R)
+    if fallback is not None and args.gamma is None and args.nu is None:
+        return fallback
+    gamma = args.gamma if args.gamma is not None else (fallback.gamma if fallback else default_gamma)
+    nu = args.nu if args.nu is not None else (fallback.nu if fallback else 1.0 / 3.0)
+    return ShellParameters.from_gamma(gamma, nu=nu)
+
+
+def _register_deflate(sub) -> None:
+    """``shellbuckle deflate``: the paper's deflation protocol, stored step by step."""
+    parser = sub.add_parser(
+        "deflate", help="deflate a shell with the paper's protocol (the main job)",
+        description="Stepwise deflation at fixed enclosed volume (Quilliet et al. 2008, §4.1): "
+                    "at each volume step jiggle, minimize, and run the zero-spontaneous-"
+                    "curvature cycle; stop at self-intersection. Every finished step is stored "
+                    "in --out; an interrupted run continues with `shellbuckle resume DIR`. "
+                    "With no options: gamma = 2333, nu = 1/3 on a randomized 3594-vertex mesh.")
+    _add_material_options(parser)
+    mesh = parser.add_argument_group("mesh (default: randomized sphere, 3594 vertices)")
+    mesh.add_argument("--vertices", type=int, help="vertices of the randomized sphere mesh")
+    mesh.add_argument("--icosphere", type=int, metavar="N",
+                      help="icosahedral sphere with edges divided in N (10 N^2 + 2 vertices)")
+    mesh.add_argument("--mesh", metavar="FILE",
+                      help="start from a mesh file (.fe/.dmp bring their own moduli, h_zero, "
+                           "poisson_ratio and form_factors; or any meshio format)")
+    proto = parser.add_argument_group("protocol")
+    proto.add_argument("--seed", type=int, default=0, help="random seed (mesh and jiggle), default 0")
+    proto.add_argument("--dv", type=float, default=0.019, help="volume step / V0 (default 0.019)")
+    proto.add_argument("--until", type=float, default=0.95,
+                       help="last target dV/V (default 0.95; the run stops earlier at self-contact)")
+    proto.add_argument("--schedule", type=str,
+                       help="comma-separated list of target dV/V values instead of --dv/--until")
+    proto.add_argument("--no-c0-cycle", action="store_true",
+                       help="skip the zero-spontaneous-curvature cycle (gives 'potato' shapes)")
+    proto.add_argument("--jiggle", type=float, default=0.01,
+                       help="jiggle amplitude, fraction of the mean edge length (default 0.01)")
+    proto.add_argument("--bending", choices=["juelicher", "evolver"], default="juelicher",
+                       help="bending discretization (default juelicher)")
+    proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
+                       help="minimizer (default newton)")
+    proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
+    parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
+    parser.add_argument("--no-plot", action="store_true", help="do not write the figure at the end")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=_cmd_deflate)
+
+
+def _cmd_deflate(args) -> int:
+    from .mesh import icosphere
+    from .mesh.random_sphere import random_sphere
+    from .run import deflate, params_for_mesh, shell_from_file
+
+    choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
+    if sum(choices) > 1:
+        raise ValueError("give only one of --vertices, --icosphere and --mesh")
+    from_file = {}
+    if args.mesh is not None:
+        mesh, from_file = shell_from_file(args.mesh)
+        if args.E is not None:
+            params = _params_from_args(args)
+        else:
+            params = params_for_mesh(mesh, from_file, args.gamma, args.nu)
+    else:
+        params = _params_from_args(args)
+        if args.icosphere is not None:
+            mesh = icosphere(args.icosphere, R=params.R)
+        else:
+            mesh = random_sphere(3594 if args.vertices is None else args.vertices,
+                                 seed=args.seed, R=params.R)
+    schedule = None
+    if args.schedule:
+        try:
+            schedule = [float(x) for x in args.schedule.split(",") if x.strip()]
+        except ValueError:
+            raise ValueError(f"--schedule must be comma-separated numbers, got {args.schedule!r}") from None
+    c0 = args.c0 if args.c0 is not None else from_file.get("c0")
+    run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
+                  c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
+                  bending=args.bending, method=args.method, c0=c0, out=args.out,
+                  progress=not args.quiet, form_factors=from_file.get("form_factors"))
+    return _report_run(run, plot=not args.no_plot)
+
+
+def _report_run(run, plot: bool) -> int:
+    table = run.table
+    last = table.iloc[-1]
+    print(f"run folder: {run.path}")
+    print(f"status: {run.status} ({run.store.meta.get('message')})")
+    print(f"steps: {int(last['step'])}, dV/V = {last['dV_over_V']:.4f}, "
+          f"E/kappa = {last['E_over_kappa']:.6g}, pressure = {last['pressure']:.6g}")
+    if plot:
+        from .plots.run import plot_deflation
+
+        path = run.path / "deflation.png"
+        plot_deflation(run, path=path)
+        print(f"figure: {path}")
+    return 0
+
+
+def _register_resume(sub) -> None:
+    """``shellbuckle resume DIR``: continue an interrupted run from its last finished step."""
+    parser = sub.add_parser("resume", help="continue a stored run from its last finished step",
+                            description="Continue the run in DIR from its last finished step; "
+                                        "the result is the same as an uninterrupted run.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("--no-plot", action="store_true", help="do not write the figure at the end")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=_cmd_resume)
+
+
+def _cmd_resume(args) -> int:
+    from .run import resume
+
+    return _report_run(resume(args.dir, progress=not args.quiet), plot=not args.no_plot)
+
+
+
 # Each entry adds one sub-command: register(subparsers) -> sets ``func`` via set_defaults.
-_COMMANDS: list = [_register_table, _register_theory, _register_evolver_energy]
+_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy]
 
 
 def main(argv=None) -> int:

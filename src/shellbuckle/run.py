@@ -90,7 +90,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             jiggle: float = protocol_mod.DEFAULT_JIGGLE, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             stop_at_contact: bool = True, c0: float | None = None, out=None,
-            progress: bool = False, max_steps: int | None = None) -> Run:
+            progress: bool = False, max_steps: int | None = None,
+            form_factors=None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
@@ -98,6 +99,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
+    ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
+    instead of the initial mesh.
     """
     from .mesh.random_sphere import random_sphere
 
@@ -110,8 +113,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     else:
         protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)
     out = Path(out) if out is not None else default_out(params, seed)
+    rest = None if form_factors is None else {"form_factors": np.asarray(form_factors, float)}
     store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
-                            X0=mesh.X, faces=mesh.faces)
+                            X0=mesh.X, faces=mesh.faces, rest=rest)
     return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
 
 
@@ -149,8 +153,9 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
 
 
 def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
-           max_steps: int | None) -> Run:
-    ctx, state = protocol_mod.init(mesh, params, protocol)
+           max_steps: int | None = None) -> Run:
+    ctx, state = protocol_mod.init(mesh, params, protocol,
+                                   form_factors=store.rest.get("form_factors"))
     try:
         last = store.last_step
         if last is None:
@@ -201,3 +206,60 @@ def _progress(enabled: bool, total: int, initial: int):
     from tqdm.auto import tqdm
 
     return tqdm(total=total, initial=initial, unit="step", desc="deflation", dynamic_ncols=True)
+
+
+def shell_from_file(path) -> tuple[Mesh, dict]:
+    """Read a starting mesh from a file, with what the file says about the shell.
+
+    A Surface Evolver datafile or dump (``.fe``, ``.dmp``) brings its own moduli: the returned
+    dict may hold ``A`` (``linear_elastic`` modulus), ``nu`` (``poisson_ratio``, if uniform),
+    ``kappa`` (``star_perp_sq_mean_curvature`` modulus / 2), ``c0`` (2 ``h_zero``) and
+    ``form_factors`` (the rest metrics). Any other format (through meshio) gives positions and
+    faces only; the mesh is then taken as the stress-free shape.
+    """
+    from pathlib import Path as _Path
+
+    path = _Path(path)
+    if not path.is_file():
+        raise ValueError(f"mesh file {str(path)!r} does not exist")
+    if path.suffix.lower() not in (".fe", ".dmp"):
+        from .mesh.io import read_mesh
+
+        return read_mesh(path), {}
+    from .mesh.evolver_io import read_evolver
+
+    evf = read_evolver(path)
+    found: dict = {}
+    elastic = evf.energy_quantities("linear_elastic")
+    if elastic:
+        found["A"] = float(elastic[0].modulus)
+        if evf.poisson_ratio is not None and np.ptp(evf.poisson_ratio) == 0:
+            found["nu"] = float(evf.poisson_ratio[0])
+        if evf.form_factors is not None:
+            ff = np.asarray(evf.form_factors, float)
+            if (ff[:, 0] * ff[:, 2] - ff[:, 1] ** 2 > 0).all():
+                found["form_factors"] = ff
+    bending = evf.energy_quantities("star_perp_sq_mean_curvature")
+    if bending:
+        found["kappa"] = float(bending[0].modulus) / 2.0
+        if evf.h_zero is not None and np.ndim(evf.h_zero) == 0:
+            found["c0"] = 2.0 * float(evf.h_zero)
+    return evf.mesh, found
+
+
+def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None) -> ShellParameters:
+    """Shell parameters for a mesh read from a file: options override the file's moduli.
+
+    ``R`` is the radius of the sphere with the mesh's initial volume; ``gamma = A R^2/kappa``.
+    """
+    from .energies.volume import Volume
+
+    V = Volume(mesh.faces, mesh.n_vertices).value(mesh.X)
+    if not V > 0:
+        raise ValueError(f"the mesh encloses a non-positive volume {V!r}: faces must point outward")
+    R = (3.0 * V / (4.0 * np.pi)) ** (1.0 / 3.0)
+    kappa = from_file.get("kappa", 1.0)
+    if gamma is None:
+        gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else 2333.0
+    nu = nu if nu is not None else from_file.get("nu", 1.0 / 3.0)
+    return ShellParameters.from_gamma(gamma, nu=nu, kappa=kappa, R=R)

@@ -48,16 +48,21 @@ class ShellEnergy:
 
     @classmethod
     def build(cls, mesh, params, *, bending: str = "juelicher", c0: float | None = None,
-              reference=None) -> "ShellEnergy":
+              reference=None, form_factors=None) -> "ShellEnergy":
         """Energy of ``mesh`` for :class:`~shellbuckle.params.ShellParameters` ``params``.
 
-        The stretching rest state is ``reference`` (positions, default ``mesh.X``: the
+        The stretching rest state is ``form_factors (F, 3)`` (Surface Evolver's rest metrics)
+        if given, else the shape of ``reference`` (positions, default ``mesh.X``: the
         stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere).
         """
-        X0 = mesh.X if reference is None else np.asarray(reference, float)
         t = mesh.topology
         c0 = 2.0 / params.R if c0 is None else float(c0)
-        stretching = Stretching.from_reference(X0, t.faces, t.n_vertices, params.A, params.nu)
+        if form_factors is not None:
+            stretching = Stretching.from_form_factors(t.faces, t.n_vertices, form_factors,
+                                                      params.A, params.nu)
+        else:
+            X0 = mesh.X if reference is None else np.asarray(reference, float)
+            stretching = Stretching.from_reference(X0, t.faces, t.n_vertices, params.A, params.nu)
         return cls(stretching, make_bending(bending, mesh, params.kappa, c0))
 
     @property

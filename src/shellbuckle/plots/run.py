@@ -107,7 +107,14 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
     ax_p.set_ylim(min(0.0, float(np.nanmin(table["pressure"])) / p_scale * 1.1),
                   max(1.3, 1.1 * top))
     ax_p.legend(frameon=False, fontsize=8)
-    render_surface(ax_s, X, faces, curvature, label=r"mean curvature $H$" if curvature is not None else None)
+    axis = None
+    if curvature is not None and (np.asarray(curvature) < 0).any():
+        # look into the dent: the direction of the inverted-curvature region from the centre
+        Xc = np.asarray(X, float) - np.asarray(X, float).mean(axis=0)
+        axis = Xc[np.asarray(curvature) < 0].mean(axis=0)
+        axis = None if np.linalg.norm(axis) < 1e-9 else axis
+    render_surface(ax_s, X, faces, curvature, axis=axis, elev=35.0,
+                   label=r"mean curvature $H$" if curvature is not None else None)
     last = table.iloc[-1]
     ax_s.set_title(rf"step {int(last['step'])}, $\Delta V/V$ = {float(last['dV_over_V']):.3f}",
                    fontsize=9)
@@ -116,3 +123,17 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
         fig.savefig(path, dpi=150)
         plt.close(fig)
     return fig
+
+
+def plot_deflation(run, path=None, step: int = -1):
+    """The run figure (:func:`plot_run`) of a stored :class:`~shellbuckle.run.Run`, with the
+    conformation of ``step`` (default: the last) coloured by Jülicher's mean curvature."""
+    from ..energies.bending import Bending
+    from ..mesh.topology import Topology
+
+    X = run.positions(step)
+    faces = run.faces
+    H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
+    table = run.table
+    table = table[table["step"] <= (run.steps[step])]
+    return plot_run(table, run.params, X, faces, H, path=path)

@@ -31,7 +31,8 @@ from ..energies.volume import Volume
 from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..solve import minimize
-from .jiggle import jiggle, mean_edge_length, step_rng
+from ..solve.linear import make_solver
+from .jiggle import jiggle, step_rng
 from .schedule import PAPER_DV, check_schedule, linear_schedule
 
 log = logging.getLogger(__name__)
@@ -115,21 +116,26 @@ class Context:
     volume: Volume
     V0: float
     contact: ContactChecker
+    solver: object
     c0: float = field(default=2.0)
 
 
-def init(mesh: Mesh, params, protocol: Protocol, reference=None):
-    """Build the run context and the step-0 state (the initial mesh)."""
+def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
+    """Build the run context and the step-0 state (the initial mesh ``mesh.X``).
+
+    The stretching rest state is the initial mesh, or ``form_factors`` (Surface Evolver's
+    per-face rest metrics) when given; ``V0`` is the volume of the initial mesh.
+    """
     c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
-    X0 = mesh.X if reference is None else np.asarray(reference, float)
-    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X0)
+    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0,
+                               form_factors=form_factors)
     volume = Volume(mesh.faces, mesh.n_vertices)
-    V0 = volume.value(X0)
+    V0 = volume.value(mesh.X)
     if not V0 > 0:
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), c0=c0)
+                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0)
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
 
@@ -158,8 +164,9 @@ def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before
 
 def _minimize(ctx: Context, energy, X, V_target):
     p = ctx.protocol
+    options = {"solver": ctx.solver} if p.method in ("newton", "alternate") else {}
     return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
-                    max_iter=p.max_iter)
+                    max_iter=p.max_iter, **options)
 
 
 def step(ctx: Context, state: State):
@@ -190,8 +197,3 @@ def step(ctx: Context, state: State):
     elif k == len(p.schedule):
         stopped = f"end of the schedule (dV/V = {record['dV_over_V']:.4f})"
     return State(step=k, X=result.x, stopped=stopped), record
-
-
-def mesh_scale(mesh: Mesh) -> float:
-    """Mean edge length of a mesh (sets the jiggle and the contact scale)."""
-    return mean_edge_length(mesh.X, mesh.topology.edges)
