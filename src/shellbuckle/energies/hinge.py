@@ -74,9 +74,11 @@ def _dot(u, v):
 
 
 def _cross(u, v):
-    return np.stack([u[1] * v[2] - u[2] * v[1],
-                     u[2] * v[0] - u[0] * v[2],
-                     u[0] * v[1] - u[1] * v[0]])
+    out = np.empty(np.broadcast_shapes(u.shape, v.shape))
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        np.multiply(u[j], v[k], out=out[i])
+        out[i] -= u[k] * v[j]
+    return out
 
 
 def _outer(u, v):
@@ -120,82 +122,150 @@ def _elements(elements, k, name):
 # ----------------------------------------------------------------------------- hinge kernels
 
 
-def hinge_kernel(XT: np.ndarray, HT: np.ndarray, order: int = 1) -> SimpleNamespace:
+def hinge_kernel(XT: np.ndarray, HT: np.ndarray, order: int = 1, weighted_by_length: bool = True):
     """Dihedral angle, ``phi = L theta`` and their derivatives, coordinate-major.
 
     ``XT (3, V)`` positions, ``HT (4, n)`` hinge vertices ``(i, j, k, l)``. Returns a namespace
-    with ``theta, L (n,)``, ``phi = L theta``, ``ehat (3, n)``, the angle gradient ``g (4, 3, n)``
-    (per hinge vertex) and the ``phi`` gradient ``dphi (4, 3, n)``. With ``order=2`` also the
-    ``phi`` Hessian blocks in relative coordinates ``(e, a, b)``: ``P_ee, P_ae, P_be, P_aa,
-    P_bb`` (each ``(3, 3, n)``, row index first; ``P_ab = 0``) and the angle Hessian blocks
-    ``K_ee, K_ae, K_be, K_aa, K_bb``.
+    with ``theta, L (n,)`` and ``phi = L theta``; with ``order >= 1`` also ``ehat (3, n)``, the
+    angle gradient ``g (3, 4, n)`` (coordinate, hinge vertex) and the ``phi`` gradient
+    ``dphi (3, 4, n)``; with ``order=2`` also ``hess``, a :class:`HingeHessian` of ``phi``
+    (or of ``theta`` if ``weighted_by_length`` is false).
     """
-    x0 = XT[:, HT[0]]
-    e = XT[:, HT[1]] - x0
-    a = XT[:, HT[2]] - x0
-    b = XT[:, HT[3]] - x0
+    x = np.take(XT, HT, axis=1)  # (3, 4, n)
+    e = x[:, 1] - x[:, 0]
+    a = x[:, 2] - x[:, 0]
+    b = x[:, 3] - x[:, 0]
     n0 = _cross(e, a)
     n1 = _cross(b, e)
     LL = _dot(e, e)
     L = np.sqrt(LL)
     theta = np.arctan2(-L * _dot(n0, b), _dot(n0, n1))
+    if order < 1:
+        return SimpleNamespace(theta=theta, L=L, phi=L * theta)
     s0 = 1.0 / _dot(n0, n0)
     s1 = 1.0 / _dot(n1, n1)
     t0 = _dot(a, e) / LL
     t1 = _dot(b, e) / LL
     ehat = e / L
-    g2 = -(L * s0) * n0
-    g3 = -(L * s1) * n1
+    Ls0, Ls1 = L * s0, L * s1
+    g2 = -Ls0 * n0
+    g3 = -Ls1 * n1
     g1 = -(t0 * g2 + t1 * g3)
-    g0 = -(g1 + g2 + g3)
-    dphi1 = L * g1 + theta * ehat
-    dphi2, dphi3 = L * g2, L * g3
-    out = SimpleNamespace(theta=theta, L=L, phi=L * theta, ehat=ehat,
-                          g=np.stack([g0, g1, g2, g3]),
-                          dphi=np.stack([-(dphi1 + dphi2 + dphi3), dphi1, dphi2, dphi3]))
+    g = np.empty((3, 4, len(L)))
+    g[:, 1], g[:, 2], g[:, 3] = g1, g2, g3
+    np.negative(g1 + g2 + g3, out=g[:, 0])
+    dphi = np.empty((3, 4, len(L)))
+    np.multiply(L, g1, out=dphi[:, 1])
+    dphi[:, 1] += theta * ehat
+    np.multiply(L, g2, out=dphi[:, 2])
+    np.multiply(L, g3, out=dphi[:, 3])
+    np.negative(dphi[:, 1] + dphi[:, 2] + dphi[:, 3], out=dphi[:, 0])
+    out = SimpleNamespace(theta=theta, L=L, phi=L * theta, ehat=ehat, g=g, dphi=dphi)
     if order < 2:
         return out
-    # angle Hessian in (e, a, b)
-    K_aa = (L * s0 * s0) * _sym(n0, _cross(n0, e))
-    K_bb = -(L * s1 * s1) * _sym(n1, _cross(n1, e))
-    K_ae = s0 * (-_outer(n0, ehat) + L * (_skew(a) - (2.0 * s0) * _outer(n0, _cross(n0, a))))
-    K_be = -s1 * (_outer(n1, ehat) + L * (_skew(b) - (2.0 * s1) * _outer(n1, _cross(n1, b))))
+    # angle Hessian in (e, a, b), see the module docstring; d2/de2 = -(S(n0, p) + S(n1, q)) / 2
+    m0 = _cross(n0, a)
+    m1 = _cross(n1, b)
+    x_aa = (Ls0 * s0) * _cross(n0, e)
+    x_bb = -(Ls1 * s1) * _cross(n1, e)
+    y0 = -s0 * ehat - (2.0 * Ls0 * s0) * m0
+    y1 = -s1 * ehat + (2.0 * Ls1 * s1) * m1
     grad_t0 = (a - (2.0 * t0) * e) / LL
     grad_t1 = (b - (2.0 * t1) * e) / LL
-    K_ee = -(_outer(g2, grad_t0) + t0 * K_ae + _outer(g3, grad_t1) + t1 * K_be)
-    K_ee = 0.5 * (K_ee + _T(K_ee))
-    out.K_ee, out.K_ae, out.K_be, out.K_aa, out.K_bb = K_ee, K_ae, K_be, K_aa, K_bb
+    p = -(Ls0 * grad_t0 + (t0 * s0) * ehat + (2.0 * t0 * Ls0 * s0) * m0)
+    q = -(Ls1 * grad_t1 + (t1 * s1) * ehat - (2.0 * t1 * Ls1 * s1) * m1)
+    if not weighted_by_length:
+        out.hess = HingeHessian(n0, n1, ehat, a, b, x_aa, x_bb, y0, Ls0, y1, -Ls1,
+                                -0.5 * p, -0.5 * q, None, None)
+        return out
     # phi = L theta: product rule, grad L = (ehat, 0, 0), d2L/de2 = (I - ehat ehat^T) / L
-    out.P_ee = L * K_ee + _sym(ehat, g1) + (theta / L) * (_EYE - _outer(ehat, ehat))
-    out.P_ae = L * K_ae + _outer(g2, ehat)
-    out.P_be = L * K_be + _outer(g3, ehat)
-    out.P_aa = L * K_aa
-    out.P_bb = L * K_bb
+    out.hess = HingeHessian(n0, n1, ehat, a, b, L * x_aa, L * x_bb,
+                            L * y0 - Ls0 * ehat, L * Ls0, L * y1 - Ls1 * ehat, -L * Ls1,
+                            (-0.5 * L) * p, (-0.5 * L) * q, g1 - (0.5 * theta / L) * ehat, theta / L)
     return out
 
 
-def hinge_upper_blocks(P_ee, P_ae, P_be, P_aa, P_bb, out=None, half_diagonal=False):
-    """Upper 3x3 blocks of a hinge Hessian over vertices ``(0, 1, 2, 3) = (i, j, k, l)``.
+class HingeHessian:
+    """Second derivatives of one scalar per hinge, in low-rank form.
 
-    Input: blocks in relative coordinates ``(e, a, b)`` (``e = x1 - x0``, ``a = x2 - x0``,
-    ``b = x3 - x0``, zero ``ab`` block). Output ``(3, 3, 9, n)`` in the order
-    ``HINGE_UPPER_BLOCKS`` (the ``(2, 3)`` block is identically zero and omitted); with
-    ``half_diagonal`` the diagonal blocks are halved, so that ``U + U^T`` is the full Hessian.
+    In relative coordinates ``(e, a, b)``, with ``S(u, v) = u v^T + v u^T`` and ``[v]_x`` the
+    cross-product matrix:
+
+        d2/da2 = S(n0, x_aa),  d2/db2 = S(n1, x_bb),  d2/da db = 0,
+        d2/da de = n0 y0^T + gamma0 [a]_x,  d2/db de = n1 y1^T + gamma1 [b]_x,
+        d2/de2 = S(n0, p) + S(n1, q) + S(ehat, r) + delta I,
+
+    vectors ``(3, n)``, scalars ``(n,)`` (``r`` and ``delta`` may be ``None``, i.e. zero).
     """
-    if out is None:
-        out = np.empty((3, 3, 9) + P_ee.shape[2:])
-    h = 0.5 if half_diagonal else 1.0
-    P_ea, P_eb = _T(P_ae), _T(P_be)
-    H01 = -(P_ee + P_ae + P_be)
-    H02 = -(P_ea + P_aa)
-    H03 = -(P_eb + P_bb)
-    np.multiply(-h, H01 + H02 + H03, out=out[:, :, 0])
-    out[:, :, 1], out[:, :, 2], out[:, :, 3] = H01, H02, H03
-    np.multiply(h, P_ee, out=out[:, :, 4])
-    out[:, :, 5], out[:, :, 6] = P_ea, P_eb
-    np.multiply(h, P_aa, out=out[:, :, 7])
-    np.multiply(h, P_bb, out=out[:, :, 8])
-    return out
+
+    def __init__(self, n0, n1, ehat, a, b, x_aa, x_bb, y0, gamma0, y1, gamma1, p, q, r, delta):
+        self.n0, self.n1, self.ehat, self.a, self.b = n0, n1, ehat, a, b
+        self.x_aa, self.x_bb = x_aa, x_bb
+        self.y0, self.gamma0, self.y1, self.gamma1 = y0, gamma0, y1, gamma1
+        self.p, self.q, self.r, self.delta = p, q, r, delta
+
+    def upper_blocks(self, weight=None, out=None, half_diagonal=False):
+        """``weight`` times the upper 3x3 blocks over the vertices ``(i, j, k, l)``, ``(3, 3, 9, n)``.
+
+        Block order ``HINGE_UPPER_BLOCKS`` (the ``(k, l)`` block is identically zero and left
+        out). With ``half_diagonal`` the diagonal blocks are halved, so that ``U + U^T`` is the
+        weighted Hessian.
+        """
+        n = self.n0.shape[1]
+        w = np.ones(n) if weight is None else weight
+        if out is None:
+            out = np.empty((3, 3, 9, n))
+        O = [out[:, :, k] for k in range(9)]
+        tmp, tmp2 = np.empty((3, 3, n)), np.empty((3, 3, n))
+        # (j, j) = d2/de2
+        np.multiply(self.n0[:, None], (w * self.p)[None], out=tmp)
+        np.multiply(self.n1[:, None], (w * self.q)[None], out=tmp2)
+        tmp += tmp2
+        if self.r is not None:
+            np.multiply(self.ehat[:, None], (w * self.r)[None], out=tmp2)
+            tmp += tmp2
+        np.add(tmp, _T(tmp), out=O[4])
+        if self.delta is not None:
+            wd = w * self.delta
+            for c in range(3):
+                O[4][c, c] += wd
+        # (j, k), (j, l): transposes of d2/da de, d2/db de
+        for blk, y, nrm, gam, v in ((O[5], self.y0, self.n0, self.gamma0, self.a),
+                                    (O[6], self.y1, self.n1, self.gamma1, self.b)):
+            np.multiply((w * y)[:, None], nrm[None], out=blk)
+            _add_skew(blk, -(w * gam), v)
+        # (k, k), (l, l)
+        for blk, nrm, x in ((O[7], self.n0, self.x_aa), (O[8], self.n1, self.x_bb)):
+            np.multiply(nrm[:, None], (w * x)[None], out=tmp)
+            np.add(tmp, _T(tmp), out=blk)
+        # vertex i enters through e, a, b = x - x_i: its blocks are minus the row/column sums
+        np.add(_T(O[5]), _T(O[6]), out=O[1])
+        O[1] += O[4]
+        np.negative(O[1], out=O[1])
+        np.add(O[5], O[7], out=O[2])
+        np.negative(O[2], out=O[2])
+        np.add(O[6], O[8], out=O[3])
+        np.negative(O[3], out=O[3])
+        np.add(O[1], O[2], out=O[0])
+        O[0] += O[3]
+        if half_diagonal:
+            O[0] *= -0.5
+            for k in (4, 7, 8):
+                O[k] *= 0.5
+        else:
+            np.negative(O[0], out=O[0])
+        return out
+
+
+def _add_skew(M, s, v):
+    """``M += s [v]_x`` in place, for ``M (3, 3, n)``, ``s (n,)``, ``v (3, n)``."""
+    sv = s * v
+    M[0, 1] -= sv[2]
+    M[0, 2] += sv[1]
+    M[1, 0] += sv[2]
+    M[1, 2] -= sv[0]
+    M[2, 0] -= sv[1]
+    M[2, 1] += sv[0]
 
 
 HINGE_UPPER_BLOCKS = ((0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (3, 3))
@@ -216,24 +286,19 @@ def _dense(blocks, pairs, k):
 
 def dihedral_angles(X, hinges) -> np.ndarray:
     """Signed dihedral angles ``theta (n,)`` of hinges ``(n, 4)``; positive where convex."""
-    XT, HT = _coords(X), _elements(hinges, 4, "hinges")
-    x0 = XT[:, HT[0]]
-    e, a, b = (XT[:, HT[c]] - x0 for c in (1, 2, 3))
-    n0, n1 = _cross(e, a), _cross(b, e)
-    return np.arctan2(-np.sqrt(_dot(e, e)) * _dot(n0, b), _dot(n0, n1))
+    return hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=0).theta
 
 
 def dihedral_angle_gradient(X, hinges):
     """``theta (n,)`` and its gradient ``(n, 4, 3)`` w.r.t. the hinge vertices ``(i, j, k, l)``."""
     k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=1)
-    return k.theta, k.g.transpose(2, 0, 1)
+    return k.theta, k.g.transpose(2, 1, 0)
 
 
 def dihedral_angle_hessian(X, hinges):
     """``theta (n,)``, gradient ``(n, 4, 3)`` and Hessian ``(n, 12, 12)`` (local dof ``3 a + c``)."""
-    k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=2)
-    up = hinge_upper_blocks(k.K_ee, k.K_ae, k.K_be, k.K_aa, k.K_bb)
-    return k.theta, k.g.transpose(2, 0, 1), _dense(up, HINGE_UPPER_BLOCKS, 4)
+    k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=2, weighted_by_length=False)
+    return k.theta, k.g.transpose(2, 1, 0), _dense(k.hess.upper_blocks(), HINGE_UPPER_BLOCKS, 4)
 
 
 def length_angle_hessian(X, hinges):
@@ -242,8 +307,7 @@ def length_angle_hessian(X, hinges):
     ``sum_e phi_e / 2`` is the integrated mean curvature of a polyhedral surface (Steiner).
     """
     k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=2)
-    up = hinge_upper_blocks(k.P_ee, k.P_ae, k.P_be, k.P_aa, k.P_bb)
-    return k.phi, k.dphi.transpose(2, 0, 1), _dense(up, HINGE_UPPER_BLOCKS, 4)
+    return k.phi, k.dphi.transpose(2, 1, 0), _dense(k.hess.upper_blocks(), HINGE_UPPER_BLOCKS, 4)
 
 
 # ----------------------------------------------------------------------------- triangle areas
@@ -252,44 +316,60 @@ def length_angle_hessian(X, hinges):
 def face_kernel(XT: np.ndarray, FT: np.ndarray, order: int = 1) -> SimpleNamespace:
     """Face areas and derivatives, coordinate-major.
 
-    ``FT (3, n)`` face vertices. Returns ``area (n,)``, ``grad (3, 3, n)`` (corner, coordinate)
-    and with ``order=2`` the Hessian blocks in ``(u, v) = (x1 - x0, x2 - x0)``: ``Q_uu, Q_uv,
-    Q_vv`` (``(3, 3, n)``).
+    ``FT (3, n)`` face vertices. Returns ``area (n,)``; with ``order >= 1`` also
+    ``grad (3, 3, n)`` (coordinate, corner); with ``order=2`` also ``hess``, a
+    :class:`FaceAreaHessian`.
     """
-    x0 = XT[:, FT[0]]
-    u = XT[:, FT[1]] - x0
-    v = XT[:, FT[2]] - x0
+    x = np.take(XT, FT, axis=1)  # (3, 3, n)
+    u = x[:, 1] - x[:, 0]
+    v = x[:, 2] - x[:, 0]
     n = _cross(u, v)
     norm = np.sqrt(_dot(n, n))
+    if order < 1:
+        return SimpleNamespace(area=0.5 * norm)
     nhat = n / norm
     gu = 0.5 * _cross(v, nhat)
     gv = 0.5 * _cross(nhat, u)
-    out = SimpleNamespace(area=0.5 * norm, grad=np.stack([-(gu + gv), gu, gv]))
-    if order < 2:
+    grad = np.empty((3, 3, len(norm)))
+    grad[:, 1], grad[:, 2] = gu, gv
+    np.negative(gu + gv, out=grad[:, 0])
+    out = SimpleNamespace(area=0.5 * norm, grad=grad)
+    if order >= 2:
+        out.hess = FaceAreaHessian(nhat, 0.5 / norm, (v - u, -v, u))
+    return out
+
+
+class FaceAreaHessian:
+    """Hessian of a triangle's area, ``(p, q)`` block over its corners:
+
+        d2 area / dx_p dx_q = c (E_p . E_q) nhat nhat^T + s_pq [nhat]_x / 2,
+
+    with ``E_p`` the edge opposite corner ``p`` (counter-clockwise: ``E_0 = x2 - x1``, ...),
+    ``c = 1 / (2 |n|)``, ``s_pq = -1`` if ``q = p + 1``, ``+1`` if ``q = p - 1`` (mod 3), 0 if
+    ``p = q``. (In-plane, ``[v]_x (I - nhat nhat^T) [u]_x = -(u . v) nhat nhat^T``, which reduces
+    the general formula ``J_p^T (I - nhat nhat^T) J_q / (2|n|) + ...`` to this.)
+    """
+
+    def __init__(self, nhat, c, opposite_edges):
+        self.nhat, self.c, self.E = nhat, c, opposite_edges
+
+    def upper_blocks(self, weight=None, out=None, half_diagonal=False):
+        """``weight`` times the upper blocks ``(3, 3, 6, n)``, order ``FACE_UPPER_BLOCKS``."""
+        n = self.nhat.shape[1]
+        if out is None:
+            out = np.empty((3, 3, 6, n))
+        wc = self.c if weight is None else weight * self.c
+        ws = 0.5 * (np.ones(n) if weight is None else weight)
+        NN = _outer(self.nhat, self.nhat)
+        h = 0.5 if half_diagonal else 1.0
+        for k, (p, q) in enumerate(FACE_UPPER_BLOCKS):
+            coef = wc * _dot(self.E[p], self.E[q])
+            if p == q:
+                coef = h * coef
+            np.multiply(NN, coef, out=out[:, :, k])
+            if p != q:
+                _add_skew(out[:, :, k], -ws if q == (p + 1) % 3 else ws, self.nhat)
         return out
-    c = 0.5 / norm
-    NN = _outer(nhat, nhat)
-    out.Q_uu = (c * _dot(v, v)) * NN
-    out.Q_vv = (c * _dot(u, u)) * NN
-    # [v]_x (I - nn^T) [u]_x = [v]_x [u]_x - (v x nhat)(nhat x u)^T,  [v]_x [u]_x = u v^T - (u.v) I
-    out.Q_uv = c * (_outer(u, v) - _dot(u, v) * _EYE - _outer(_cross(v, nhat), _cross(nhat, u))) \
-        - 0.5 * _skew(nhat)
-    return out
-
-
-def face_upper_blocks(Q_uu, Q_uv, Q_vv, out=None, half_diagonal=False):
-    """Upper 3x3 blocks ``(3, 3, 6, n)`` of a face Hessian over its corners, order ``FACE_UPPER_BLOCKS``."""
-    if out is None:
-        out = np.empty((3, 3, 6) + Q_uu.shape[2:])
-    h = 0.5 if half_diagonal else 1.0
-    H01 = -(Q_uu + _T(Q_uv))
-    H02 = -(Q_uv + Q_vv)
-    np.multiply(-h, H01 + H02, out=out[:, :, 0])
-    out[:, :, 1], out[:, :, 2] = H01, H02
-    np.multiply(h, Q_uu, out=out[:, :, 3])
-    out[:, :, 4] = Q_uv
-    np.multiply(h, Q_vv, out=out[:, :, 5])
-    return out
 
 
 def face_areas(X, faces) -> np.ndarray:
@@ -300,5 +380,4 @@ def face_areas(X, faces) -> np.ndarray:
 def face_area_hessian(X, faces):
     """Areas ``(n,)``, gradients ``(n, 3, 3)`` and Hessians ``(n, 9, 9)`` (local dof ``3 a + c``)."""
     k = face_kernel(_coords(X), _elements(faces, 3, "faces"), order=2)
-    up = face_upper_blocks(k.Q_uu, k.Q_uv, k.Q_vv)
-    return k.area, k.grad.transpose(2, 0, 1), _dense(up, FACE_UPPER_BLOCKS, 3)
+    return k.area, k.grad.transpose(2, 1, 0), _dense(k.hess.upper_blocks(), FACE_UPPER_BLOCKS, 3)
