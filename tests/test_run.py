@@ -1,0 +1,104 @@
+"""Durable runs: resume gives the uninterrupted result; bad input is refused before work."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from shellbuckle.cli import main
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.run import Run, continue_from, deflate, resume
+
+PARAMS = ShellParameters.from_gamma(271.0, nu=1 / 3)
+OPTIONS = dict(dv=0.03, until=0.24, jiggle=0.02, seed=7)
+
+
+def _compare(a: pd.DataFrame, b: pd.DataFrame):
+    cols = [c for c in a.columns if c != "wall_s"]
+    pd.testing.assert_frame_equal(a[cols].reset_index(drop=True), b[cols].reset_index(drop=True),
+                                  check_exact=True)
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    return deflate(icosphere(4), PARAMS, out=tmp_path_factory.mktemp("full") / "run", **OPTIONS)
+
+
+def test_resume_after_pause_gives_the_same_table(tmp_path, uninterrupted):
+    out = tmp_path / "run"
+    part = deflate(icosphere(4), PARAMS, out=out, max_steps=3, **OPTIONS)
+    assert part.status == "paused" and part.steps == [0, 1, 2, 3]
+    done = resume(out)
+    assert done.status == "finished"
+    _compare(done.table, uninterrupted.table)
+    for k in done.steps:
+        np.testing.assert_array_equal(done.positions(k), uninterrupted.positions(k))
+
+
+_CHILD = """
+import sys
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.run import deflate
+deflate(icosphere(4), ShellParameters.from_gamma(271.0, nu=1/3), out=sys.argv[1],
+        dv=0.03, until=0.24, jiggle=0.02, seed=7)
+"""
+
+
+def test_kill_9_then_resume_gives_the_same_table(tmp_path, uninterrupted):
+    out = tmp_path / "run"
+    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(out)])
+    deadline = time.time() + 120
+    steps = out / "steps"
+    while time.time() < deadline and child.poll() is None:
+        if steps.is_dir() and len([p for p in steps.glob("step_*.h5")]) >= 3:
+            break
+        time.sleep(0.05)
+    os.kill(child.pid, signal.SIGKILL)
+    child.wait()
+    before = Run.open(out).steps
+    assert before == list(range(len(before))) and len(before) >= 1
+    done = resume(out)
+    _compare(done.table, uninterrupted.table)
+
+
+def test_reinflation_branch_keeps_the_reference(tmp_path, uninterrupted):
+    k = uninterrupted.steps[-1]
+    back = continue_from(uninterrupted, k, tmp_path / "back", dv=-0.06, until=0.05)
+    table = back.table
+    assert table["target_dV_over_V"].iloc[1] == pytest.approx(table["dV_over_V"].iloc[0] - 0.06)
+    assert (np.diff(table["dV_over_V"]) < 0).all()
+    # energies are measured from the same stress-free sphere: step 0 repeats the parent's step k
+    assert table["E_total"].iloc[0] == pytest.approx(uninterrupted.table["E_total"].iloc[k])
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["deflate", "--gamma", "-1"], "gamma"),
+    (["deflate", "--nu", "1.5"], "nu"),
+    (["deflate", "--E", "1", "--sigma", "0.7", "--d", "0.1", "--R", "1"], "sigma"),
+    (["deflate", "--dv", "0"], "dv"),
+    (["deflate", "--until", "1.2"], "dV/V"),
+    (["deflate", "--jiggle", "-1"], "jiggle"),
+    (["deflate", "--vertices", "2"], "n_vertices"),
+    (["deflate", "--mesh", "/nonexistent/shell.fe"], "does not exist"),
+    (["resume", "/nonexistent/run"], "run"),
+])
+def test_bad_input_exits_2_with_the_value_named(tmp_path, capsys, argv, fragment):
+    code = main(argv + (["--out", str(tmp_path / "x")] if argv[0] == "deflate" else []))
+    err = capsys.readouterr().err
+    assert code == 2
+    assert fragment in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists(), "nothing is written for refused input"
+
+
+def test_a_different_run_is_never_written_into_an_existing_run(uninterrupted, capsys):
+    before = uninterrupted.table
+    code = main(["deflate", "--icosphere", "4", "--gamma", "743", "--out", str(uninterrupted.path)])
+    assert code == 2 and "different run" in capsys.readouterr().err
+    _compare(Run.open(uninterrupted.path).table, before)
