@@ -33,7 +33,7 @@ vertices
 30  0 side 0
 40  0 0 -(-side)   /* = 2 */
 
-edges
+edges:   // ':' is whitespace in datafiles
 1 10 20
 2 20 30
 3 30 10

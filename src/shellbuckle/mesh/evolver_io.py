@@ -136,8 +136,6 @@ class _Tok:
         return f"{self.kind}:{self.value!r}"
 
 
-_NUMBER = re.compile(r"0[xX][0-9a-fA-F]+|(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?")
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*")
 _WHITESPACE = " \t,;:\x1a\r"
 _OPERATORS = ("**", "==", "!=", "<=", ">=", "&&", "||", ":=", "+", "-", "*", "/", "^", "(", ")",
               "{", "}", "[", "]", "=", "%", "<", ">", "!", "?", "@", "'", "|", "&", "~")
@@ -419,8 +417,7 @@ _UNSUPPORTED_MODEL = {
     "klein_metric": "the Klein metric",
 }
 _SKIPPED_ENERGIES = ("squared_curvature", "square_curvature", "sqgauss", "square_gaussian_curvature",
-                     "squared_gaussian_curvature", "mean_curvature_integral", "gauss_curvature",
-                     "gravity_constant", "gap_constant", "spring_constant")
+                     "squared_gaussian_curvature", "mean_curvature_integral", "gauss_curvature")
 _QUANTITY_KINDS = {"energy": "energy", "info_only": "info_only", "fixed": "fixed",
                    "conserved": "conserved"}
 _FACET_METHODS = {"linear_elastic"}
@@ -484,7 +481,8 @@ class _Parser:
             if brace_depth > 0:  # inside a procedure/function body in the top section
                 brace_depth += stripped.count("{") - stripped.count("}")
                 continue
-            words = stripped.split(None, 1)
+            words = re.split(r"[ \t,;:]+", stripped, maxsplit=1)  # ',;:' are whitespace too
+            words = [w for w in words if w]
             first = words[0].lower()
             if first in _SECTIONS:
                 new = _SECTIONS[first]
@@ -497,17 +495,15 @@ class _Parser:
                     raise ValueError(f"{where}: unexpected text after {words[0]!r}: {words[1]!r}")
                 section = new
                 continue
-            toks = _tokenize(text, where, self.macros, lists=section != "top")
             if section == "top":
                 opened = stripped.count("{") - stripped.count("}")
-                if opened > 0 or (toks and toks[0].kind == "ident"
-                                  and toks[0].value.lower() in ("procedure", "function")):
-                    brace_depth = max(opened, 0)
+                if opened > 0 or first in ("procedure", "function"):
+                    brace_depth = max(opened, 0)  # a command body: skipped, never parsed
                     self.skip(no, f"definition {stripped[:60]!r} (not executed)")
                     continue
-                self._top(toks, no, stripped)
+                self._top(_tokenize(text, where, self.macros), no, stripped)
             else:
-                getattr(self, "_" + section)(toks, no)
+                getattr(self, "_" + section)(_tokenize(text, where, self.macros, lists=True), no)
         if brace_depth > 0:
             raise ValueError(f"{self.label}: unbalanced '{{' in the top section")
 
@@ -772,6 +768,9 @@ class _Parser:
         where = self.where(no)
         coords, pos = [], 1
         for _ in range(3):
+            if pos < len(toks) and toks[pos].kind == "ident" and toks[pos].value.lower() == "boundary":
+                raise ValueError(f"{where}: vertex {vid} is on a parametric boundary; such vertices "
+                                 "are not supported")
             if pos >= len(toks) or toks[pos].kind == "ident" and toks[pos].value.lower() not in self.params \
                     and toks[pos].value.lower() not in _FUNCTIONS and toks[pos].value.lower() != "pi":
                 raise ValueError(f"{where}: vertex {vid} needs 3 coordinates (x y z), got {len(coords)}")
