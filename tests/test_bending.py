@@ -114,6 +114,14 @@ def test_kappa_and_c0_enter_as_the_formula_says():
     np.testing.assert_allclose(b.vertex_energy(X).sum(), b.value(X), rtol=1e-13)
 
 
+def test_value_and_gradient_agrees_with_value_and_gradient():
+    m, X = _perturbed_icosphere(3, seed=8)
+    b = Bending.from_mesh(m, kappa=0.9, c0=1.4)
+    E, g = b.value_and_gradient(X)
+    assert E == pytest.approx(b.value(X), rel=1e-13)
+    np.testing.assert_array_equal(g, b.gradient(X))
+
+
 def test_with_c0_shares_the_plan_and_changes_only_c0():
     m = icosphere(3)
     b = Bending.from_mesh(m, kappa=2.0, c0=2.0)

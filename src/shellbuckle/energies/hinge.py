@@ -21,40 +21,51 @@ the two faces are coplanar, ``< 0`` in a valley. ``atan2`` keeps it accurate at 
 
 Derivatives
 -----------
-The gradient is the classical one (e.g. Bridson, Marino, Fedkiw, SCA 2003; Tamstorf & Grinspun,
-"Discrete bending forces and their Jacobians", Graphical Models 75, 362 (2013)): with
-``L = |e|``, ``t0 = a.e / L^2``, ``t1 = b.e / L^2``,
+The gradient is the classical one (Bridson, Marino, Fedkiw, "Simulation of clothing with folds
+and wrinkles", SCA 2003; Tamstorf & Grinspun, "Discrete bending forces and their Jacobians",
+Graphical Models 75 (2013)): with ``L = |e|``, ``t0 = a.e / L^2``, ``t1 = b.e / L^2``,
 
     g2 = d theta / dx2 = -L n0 / |n0|^2,      g3 = d theta / dx3 = -L n1 / |n1|^2,
     g1 = d theta / dx1 = -(t0 g2 + t1 g3),    g0 = -(g1 + g2 + g3).
 
-The Hessian is obtained by differentiating these once more in the relative coordinates
-``(e, a, b)`` (``d(n/|n|^2)/dn = (I - 2 nhat nhat^T) / |n|^2``); with ``[v]_x`` the
-cross-product matrix and ``S(u, v) = u v^T + v u^T``:
+The Hessian is derived here by differentiating these once more in the relative coordinates
+``(e, a, b)``, using ``d(n/|n|^2)/dn = (I - 2 nhat nhat^T) / |n|^2``. With ``[v]_x`` the
+cross-product matrix, ``S(u, v) = u v^T + v u^T``, ``s0 = 1/|n0|^2``, ``s1 = 1/|n1|^2``,
+``m0 = n0 x a``, ``m1 = n1 x b``:
 
-    d2/da2 = L S(n0, n0 x e) / |n0|^4,         d2/db2 = -L S(n1, n1 x e) / |n1|^4,
-    d2/da de = -n0 ehat^T / |n0|^2 + L ([a]_x - 2 n0 (n0 x a)^T / |n0|^2) / |n0|^2,
-    d2/db de = -n1 ehat^T / |n1|^2 - L ([b]_x - 2 n1 (n1 x b)^T / |n1|^2) / |n1|^2,
-    d2/de2 = -(g2 (grad t0)^T + t0 d2/da de + g3 (grad t1)^T + t1 d2/db de),
-    d2/da db = 0,
+    d2/da2  = L s0^2 S(n0, n0 x e),            d2/db2 = -L s1^2 S(n1, n1 x e),   d2/da db = 0,
+    d2/da de = n0 y0^T + L s0 [a]_x,           y0 = -s0 ehat - 2 L s0^2 m0,
+    d2/db de = n1 y1^T - L s1 [b]_x,           y1 = -s1 ehat + 2 L s1^2 m1,
+    d2/de2  = -(S(n0, p) + S(n1, q)) / 2,
+        p = -(L s0 grad t0 + t0 s0 ehat + 2 t0 L s0^2 m0),
+        q = -(L s1 grad t1 + t1 s1 ehat - 2 t1 L s1^2 m1),   grad t = (a - 2 t e) / L^2 (resp. b).
 
-and mapped to the four vertices by ``x0 = -(e + a + b)`` bookkeeping (the rows/columns of
-vertex 0 are minus the sums of the others). The edge-length-weighted angle ``phi = L theta``
-of the Jülicher mean curvature follows by the product rule with ``grad L = ehat`` and
-``d2 L / de2 = (I - ehat ehat^T) / L``.
+(``d2/de2 = -(g2 grad t0^T + t0 d2/da de + g3 grad t1^T + t1 d2/db de)`` is symmetric, so only
+the symmetric part of the rank-two terms survives.) The blocks of vertex ``i`` follow from
+``e, a, b = x - x_i``: they are minus the row/column sums of the others. The edge-length-weighted
+angle ``phi = L theta`` of the Jülicher mean curvature follows by the product rule with
+``grad L = ehat``, ``d2 L / de2 = (I - ehat ehat^T) / L``; it has the same form with extra
+``S(ehat, g1 - theta ehat / (2L)) + (theta / L) I`` in ``d2/de2`` (:class:`HingeHessian`).
 
 Triangle areas: for a face ``(x0, x1, x2)``, ``u = x1 - x0``, ``v = x2 - x0``, ``n = u x v``,
-``area = |n| / 2``, ``d area/du = v x nhat / 2``, ``d area/dv = nhat x u / 2`` and
+``area = |n| / 2``, ``d area/du = v x nhat / 2``, ``d area/dv = nhat x u / 2``, and the
+``(p, q)`` block of the Hessian over the corners is
 
-    d2 area/du2 = |v|^2 nhat nhat^T / (2|n|),   d2 area/dv2 = |u|^2 nhat nhat^T / (2|n|),
-    d2 area/du dv = ([v]_x (I - nhat nhat^T) [u]_x / |n| - [nhat]_x) / 2.
+    c (E_p . E_q) nhat nhat^T + s_pq [nhat]_x / 2,   c = 1 / (2 |n|),
+
+with ``E_p`` the edge opposite corner ``p`` (``E_0 = x2 - x1``, ``E_1 = x0 - x2``,
+``E_2 = x1 - x0``) and ``s_pq = -1`` for ``q = p + 1``, ``+1`` for ``q = p - 1`` (mod 3), 0 for
+``p = q`` (:class:`FaceAreaHessian`).
+
+Every formula is checked against central differences in ``tests/test_hinge.py``.
 
 Layout
 ------
 The public functions take ``X (V, 3)`` and return vertex-major arrays: gradients ``(n, 4, 3)``
 (or ``(n, 3, 3)`` for faces), Hessians ``(n, 12, 12)`` (``(n, 9, 9)``) with local dof
-``3 a + c``. Internally the kernels work coordinate-major (vectors ``(3, n)``, 3x3 blocks
-``(3, 3, n)``) so that the bending energy can scatter blocks without transposing. All angles
+``3 a + c``. Internally the kernels work coordinate-major (vectors ``(3, n)``, gradients
+``(3, k, n)``, 3x3 blocks ``(3, 3, n)``) so that the bending energy can scatter them without
+transposing. All angles
 and derivatives are undefined for degenerate (zero-area) triangles.
 """
 
@@ -126,10 +137,10 @@ def hinge_kernel(XT: np.ndarray, HT: np.ndarray, order: int = 1, weighted_by_len
     """Dihedral angle, ``phi = L theta`` and their derivatives, coordinate-major.
 
     ``XT (3, V)`` positions, ``HT (4, n)`` hinge vertices ``(i, j, k, l)``. Returns a namespace
-    with ``theta, L (n,)`` and ``phi = L theta``; with ``order >= 1`` also ``ehat (3, n)``, the
-    angle gradient ``g (3, 4, n)`` (coordinate, hinge vertex) and the ``phi`` gradient
-    ``dphi (3, 4, n)``; with ``order=2`` also ``hess``, a :class:`HingeHessian` of ``phi``
-    (or of ``theta`` if ``weighted_by_length`` is false).
+    with ``theta, L (n,)`` and ``phi = L theta``; with ``order >= 1`` also ``ehat (3, n)`` and
+    the gradient of ``phi``, ``dphi (3, 4, n)`` (coordinate, hinge vertex), or with
+    ``weighted_by_length=False`` that of ``theta``, ``g (3, 4, n)``; with ``order=2`` also
+    ``hess``, a :class:`HingeHessian` of the same scalar.
     """
     x = np.take(XT, HT, axis=1)  # (3, 4, n)
     e = x[:, 1] - x[:, 0]
@@ -151,16 +162,21 @@ def hinge_kernel(XT: np.ndarray, HT: np.ndarray, order: int = 1, weighted_by_len
     g2 = -Ls0 * n0
     g3 = -Ls1 * n1
     g1 = -(t0 * g2 + t1 * g3)
-    g = np.empty((3, 4, len(L)))
-    g[:, 1], g[:, 2], g[:, 3] = g1, g2, g3
-    np.negative(g1 + g2 + g3, out=g[:, 0])
-    dphi = np.empty((3, 4, len(L)))
-    np.multiply(L, g1, out=dphi[:, 1])
-    dphi[:, 1] += theta * ehat
-    np.multiply(L, g2, out=dphi[:, 2])
-    np.multiply(L, g3, out=dphi[:, 3])
-    np.negative(dphi[:, 1] + dphi[:, 2] + dphi[:, 3], out=dphi[:, 0])
-    out = SimpleNamespace(theta=theta, L=L, phi=L * theta, ehat=ehat, g=g, dphi=dphi)
+    out = SimpleNamespace(theta=theta, L=L, phi=L * theta, ehat=ehat)
+    if weighted_by_length:  # gradient of phi only
+        d = np.empty((3, 4, len(L)))
+        np.multiply(L, g1, out=d[:, 1])
+        d[:, 1] += theta * ehat
+        np.multiply(L, g2, out=d[:, 2])
+        np.multiply(L, g3, out=d[:, 3])
+        out.dphi = d
+    else:  # gradient of theta only
+        d = np.empty((3, 4, len(L)))
+        d[:, 1], d[:, 2], d[:, 3] = g1, g2, g3
+        out.g = d
+    np.add(d[:, 1], d[:, 2], out=d[:, 0])
+    d[:, 0] += d[:, 3]
+    np.negative(d[:, 0], out=d[:, 0])
     if order < 2:
         return out
     # angle Hessian in (e, a, b), see the module docstring; d2/de2 = -(S(n0, p) + S(n1, q)) / 2
@@ -291,7 +307,7 @@ def dihedral_angles(X, hinges) -> np.ndarray:
 
 def dihedral_angle_gradient(X, hinges):
     """``theta (n,)`` and its gradient ``(n, 4, 3)`` w.r.t. the hinge vertices ``(i, j, k, l)``."""
-    k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=1)
+    k = hinge_kernel(_coords(X), _elements(hinges, 4, "hinges"), order=1, weighted_by_length=False)
     return k.theta, k.g.transpose(2, 1, 0)
 
 
