@@ -28,7 +28,7 @@ def make_bending(kind: str, mesh, kappa: float, c0: float):
     if kind == "evolver":
         from .evolver_bending import StarPerpBending
 
-        return StarPerpBending.from_mesh(mesh, kappa=kappa, c0=c0)
+        return StarPerpBending(mesh.faces, mesh.n_vertices, kappa=kappa, c0=c0)
     raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {kind!r}")
 
 
