@@ -24,8 +24,9 @@ volume step:
 Intersection test
 -----------------
 Candidate face pairs come from a broad phase: a k-d tree on face centroids gives the pairs
-with ``|c_a - c_b| <= 2 max_f rho_f`` (``rho_f`` is the largest centroid-vertex distance of
-face ``f``, so every point of ``f`` lies in the ball of radius ``rho_f`` about ``c_f``); pairs
+with ``|c_a - c_b| <= 2 rho_q`` (``rho_f`` is the largest centroid-vertex distance of face
+``f``, so every point of ``f`` lies in the ball of radius ``rho_f`` about ``c_f``; ``rho_q``
+is 1.2 times the median ``rho_f``, and the few larger faces get their own ball queries); pairs
 sharing a vertex are dropped, then pairs with ``|c_a - c_b| > rho_a + rho_b`` and pairs whose
 axis-aligned bounding boxes do not overlap. The exact test is Devillers & Guigue's
 (O. Devillers, P. Guigue, "Faster triangle-triangle intersection tests", INRIA RR-4488 (2002);
@@ -69,6 +70,7 @@ vectorized work linear in the number of candidate pairs. See ``benchmarks/bench_
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 import scipy.sparse as sp
@@ -435,22 +437,30 @@ class ContactChecker:
     def _distances(self, X, tree, face_cutoff):
         """Vertex-vertex minimum (always) and vertex-face minimum (below ``face_cutoff``).
 
-        Both come from one list of non-adjacent vertex pairs within a radius ``r``. The
-        vertex-vertex minimum is exact as soon as that list is not empty (``r`` grows by 1.25
-        until it is; it starts at 0.75 (rings + 1) mean edge lengths). For the vertex-face
-        minimum: the point of face ``f`` closest to ``x_v`` lies within ``rho = l_max / sqrt(3)``
-        of a vertex ``j`` of ``f`` (``l_max``: longest edge; the covering radius of a triangle
-        is its circumradius if acute, below half its longest edge if obtuse), and ``j`` is
-        non-adjacent to ``v`` when ``f`` is. So the faces of the far partners ``j`` within
-        ``c + rho`` of ``x_v`` contain every non-adjacent face within ``c`` of it, and the
-        minimum over them is exact when it is ``<= c``.
+        Vertex-vertex: all non-adjacent vertex pairs within a radius ``r`` (k-d tree
+        ``query_pairs``, then the k-ring set); the minimum is exact as soon as the list is not
+        empty. ``r`` starts at 0.75 (rings + 1) mean edge lengths and grows by 1.25 until then.
+
+        Vertex-face: every point of a face ``f`` lies within its covering radius, at most
+        ``l_f / sqrt(3)`` (``l_f``: longest edge; the circumradius if ``f`` is acute, less than
+        ``l_f / 2`` if obtuse), of a vertex ``j`` of ``f``, and ``j`` is non-adjacent to ``v``
+        when ``f`` is. With ``cover_j`` the largest such radius over the faces at ``j``, the
+        faces at the far partners ``j`` of ``v`` with ``|x_v - x_j| <= c + cover_j`` contain
+        every non-adjacent face within ``c`` of ``x_v``: the minimum over them is exact when
+        it is ``<= c``. ``c`` starts at ``min(face_cutoff, mean edge)`` and is raised (to the
+        best value found, or by 1.25) until the minimum is below it or ``c`` reaches the cutoff.
         """
         lengths = self._edge_lengths(X)
-        rho = float(lengths.max()) / np.sqrt(3.0)
-        extent = float(np.sqrt(_dot(np.ptp(X, axis=0), np.ptp(X, axis=0))))
-        r = 0.75 * (self.rings + 1) * float(lengths.mean())
-        if np.isfinite(face_cutoff):
-            r = max(r, face_cutoff + rho)
+        mean = float(lengths.mean())
+        extent = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+        fe = lengths[self.topology.face_edges]
+        face_cover = np.maximum(np.maximum(fe[:, 0], fe[:, 1]), fe[:, 2]) / np.sqrt(3.0)
+        ptr = self.topology.vertex_faces_ptr
+        cover = np.maximum.reduceat(face_cover[self.topology.vertex_faces], ptr[:-1])
+        median, p99 = np.percentile(cover, [50, 99])
+        q = min(float(cover.max()), min(max(p99, 1.2 * median), 2.0 * median))  # above: balls
+        c = min(float(face_cutoff), mean)
+        r = max(0.75 * (self.rings + 1) * mean, c + q)
         while True:
             pairs, d = self._far_pairs(X, tree, r)
             if len(pairs) or r > extent:
@@ -460,26 +470,39 @@ class ContactChecker:
             return (np.inf, None), (np.inf, None)
         k = _first_argmin(d, pairs)
         vertex = (float(d[k]), (int(pairs[k, 0]), int(pairs[k, 1])))
-        c = min(face_cutoff, r - rho)  # exact below c with the pairs at hand
-        face = self._face_min(X, pairs[d <= c + rho])
-        if face[0] > c and c < face_cutoff:  # search further (only with a large or infinite cutoff)
-            c = min(face_cutoff, max(face[0], 1.25 * c))
-            pairs, d = self._far_pairs(X, tree, c + rho)
-            face = self._face_min(X, pairs[d <= c + rho])
+        face = self._face_min(X, self._face_candidates(X, tree, c, cover, q, pairs, d))
+        while face[0] > c and c < face_cutoff and c <= extent:
+            c = min(float(face_cutoff), face[0] if np.isfinite(face[0]) else 1.25 * c)
+            face = self._face_min(X, self._face_candidates(X, tree, c, cover, q))
         return vertex, (face if face[0] <= face_cutoff else (np.inf, None))
 
+    def _face_candidates(self, X, tree, c, cover, q, pairs=None, d=None):
+        """Ordered non-adjacent pairs ``(v, j)`` with ``|x_v - x_j| <= c + cover_j``: from the
+        far pairs within ``c + q`` (given, or queried), plus ball queries around the vertices
+        with ``cover_j > q``."""
+        if pairs is None:
+            pairs, d = self._far_pairs(X, tree, c + q)
+        both = np.concatenate([pairs, pairs[:, ::-1]])
+        both = both[np.concatenate([d, d]) <= c + cover[both[:, 1]]]
+        big = np.flatnonzero(cover > q)
+        if len(big):
+            balls = tree.query_ball_point(X[big], c + cover[big], return_sorted=False)
+            counts = np.fromiter(map(len, balls), dtype=np.int64, count=len(big))
+            v = np.fromiter(chain.from_iterable(balls), dtype=np.int64, count=int(counts.sum()))
+            j = np.repeat(big, counts)
+            far = ~self.adjacent(v, j)
+            both = np.concatenate([both, np.stack([v[far], j[far]], axis=1)])
+        return both
+
     def _face_min(self, X, pairs):
-        """Smallest distance from ``v`` to a non-adjacent face of ``j`` over ``(v, j)`` pairs,
-        both orders."""
+        """Smallest distance from ``v`` to a face at ``j`` with no vertex adjacent to ``v``, over
+        ordered pairs ``(v, j)``; ties: smallest ``(v, f)``."""
         if len(pairs) == 0:
             return np.inf, None
-        both = np.concatenate([pairs, pairs[:, ::-1]])
         ptr, vf = self.topology.vertex_faces_ptr, self.topology.vertex_faces
-        m = np.diff(ptr)[both[:, 1]]
-        v = np.repeat(both[:, 0], m)
-        f = vf[np.repeat(ptr[both[:, 1]], m) + np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)]
-        vf_keys = np.unique(v * self.topology.n_faces + f)
-        v, f = vf_keys // self.topology.n_faces, vf_keys % self.topology.n_faces
+        m = np.diff(ptr)[pairs[:, 1]]
+        v = np.repeat(pairs[:, 0], m)
+        f = vf[np.repeat(ptr[pairs[:, 1]], m) + np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)]
         F = self.topology.faces
         keep = ~(self.adjacent(v, F[f, 0]) | self.adjacent(v, F[f, 1]) | self.adjacent(v, F[f, 2]))
         v, f = v[keep], f[keep]
@@ -511,8 +534,8 @@ class ContactChecker:
         """``(pairs, n)``: the face pairs ``(f, g)``, ``f < g``, sharing no vertex that intersect,
         sorted lexicographically and truncated to ``max_pairs``; ``n`` is the total count.
 
-        Broad phase: centroid pairs within ``2 max rho_f`` (k-d tree), minus pairs sharing a
-        vertex, minus pairs with ``|c_f - c_g| > rho_f + rho_g``, minus pairs whose bounding
+        Broad phase: centroid pairs that may be within ``rho_f + rho_g``
+        (:meth:`_centroid_pairs`), minus pairs sharing a vertex, minus pairs with ``|c_f - c_g| > rho_f + rho_g``, minus pairs whose bounding
         boxes (widened by ``tol`` times the larger ``rho``) are disjoint; then
         :func:`triangles_intersect`.
         """
@@ -524,9 +547,9 @@ class ContactChecker:
         T = X[self.topology.faces]
         centroids = (T[:, 0] + T[:, 1] + T[:, 2]) / 3.0
         rel = T - centroids[:, None]
-        rho = np.sqrt(_dot(rel, rel).max(axis=1))
-        tree = cKDTree(centroids, balanced_tree=False, compact_nodes=False)
-        cand = tree.query_pairs(2.0 * float(rho.max()), output_type="ndarray").astype(np.int64)
+        r2 = _dot(rel, rel)
+        rho = np.sqrt(np.maximum(np.maximum(r2[:, 0], r2[:, 1]), r2[:, 2]))
+        cand = self._centroid_pairs(centroids, rho)
         if len(cand):
             cand = cand[~self._sharing.contains(cand[:, 0] * self.topology.n_faces + cand[:, 1])]
         if len(cand):
@@ -534,16 +557,40 @@ class ContactChecker:
             dc = centroids[a] - centroids[b]
             cand = cand[_dot(dc, dc) <= ((rho[a] + rho[b]) * (1 + 1e-9)) ** 2]
         if len(cand):
-            lo, hi = T.min(axis=1), T.max(axis=1)
-            a, b = cand[:, 0], cand[:, 1]
-            slack = (2 * self.tol * np.maximum(rho[a], rho[b]))[:, None]
-            cand = cand[((lo[a] <= hi[b] + slack) & (lo[b] <= hi[a] + slack)).all(axis=1)]
+            Ta, Tb = T[cand[:, 0]], T[cand[:, 1]]
+            lo_a = np.minimum(np.minimum(Ta[:, 0], Ta[:, 1]), Ta[:, 2])
+            hi_a = np.maximum(np.maximum(Ta[:, 0], Ta[:, 1]), Ta[:, 2])
+            lo_b = np.minimum(np.minimum(Tb[:, 0], Tb[:, 1]), Tb[:, 2])
+            hi_b = np.maximum(np.maximum(Tb[:, 0], Tb[:, 1]), Tb[:, 2])
+            slack = (2 * self.tol * np.maximum(rho[cand[:, 0]], rho[cand[:, 1]]))[:, None]
+            cand = cand[((lo_a <= hi_b + slack) & (lo_b <= hi_a + slack)).all(axis=1)]
         if len(cand):
             cand = cand[triangles_intersect(T[cand[:, 0]], T[cand[:, 1]], self.tol)]
-        cand = np.sort(cand.reshape(-1, 2), axis=1)
-        cand = cand[np.lexsort((cand[:, 1], cand[:, 0]))]
+        cand = np.unique(np.sort(cand.reshape(-1, 2), axis=1), axis=0).reshape(-1, 2)
         n = len(cand)
         return (cand if max_pairs is None else cand[:max_pairs]), n
+
+    @staticmethod
+    def _centroid_pairs(centroids, rho):
+        """Face pairs ``(f, g)``, ``f < g``, that may satisfy ``|c_f - c_g| <= rho_f + rho_g``
+        (a superset; duplicates possible). One ``query_pairs`` at ``2 rho_q``, plus ball queries
+        of radius ``rho_f + max rho`` around the faces with ``rho_f > rho_q``, so that a few
+        large faces do not inflate the radius for all. ``rho_q`` is the 99th percentile of
+        ``rho``, kept within [1.2, 2] times the median."""
+        rho_max = float(rho.max())
+        median, p99 = np.percentile(rho, [50, 99])
+        rho_q = min(rho_max, min(max(p99, 1.2 * median), 2.0 * median))
+        tree = cKDTree(centroids, balanced_tree=False, compact_nodes=False)
+        cand = tree.query_pairs(2.0 * rho_q, output_type="ndarray").astype(np.int64, copy=False)
+        big = np.flatnonzero(rho > rho_q)
+        if len(big):
+            balls = tree.query_ball_point(centroids[big], rho[big] + rho_max, return_sorted=False)
+            counts = np.fromiter(map(len, balls), dtype=np.int64, count=len(big))
+            g = np.fromiter(chain.from_iterable(balls), dtype=np.int64, count=int(counts.sum()))
+            f = np.repeat(big, counts)
+            extra = np.stack([np.minimum(f, g), np.maximum(f, g)], axis=1)[f != g]
+            cand = np.concatenate([cand.reshape(-1, 2), extra])
+        return cand
 
     # -- all together --------------------------------------------------------------------------
 
