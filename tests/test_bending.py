@@ -56,6 +56,18 @@ def test_hessian_matches_finite_differences_of_gradient(c0, seed):
     assert err < 1e-6
 
 
+def test_derivatives_on_an_irregular_mesh_match_finite_differences():
+    # a randomized mesh has vertices of several valences (several star groups in the plan)
+    from shellbuckle.mesh import random_sphere
+
+    m = random_sphere(60, seed=3)
+    assert len(np.unique(m.topology.valence())) >= 3
+    X = m.X + 0.02 * np.random.default_rng(0).normal(size=m.X.shape)
+    b = Bending.from_mesh(m, kappa=0.8, c0=2.0)
+    assert _fd_errors(b.value, lambda Y: b.gradient(Y).ravel(), X) < 1e-6
+    assert _fd_errors(lambda Y: b.gradient(Y).ravel(), lambda Y: b.hessian(Y).toarray(), X) < 1e-6
+
+
 def test_hessian_is_symmetric_csr_with_sorted_indices():
     m, X = _perturbed_icosphere(4, seed=2)
     H = Bending.from_mesh(m, c0=2.0).hessian(X)
@@ -128,6 +140,17 @@ def test_with_c0_shares_the_plan_and_changes_only_c0():
     b0 = b.with_c0(0.0)
     assert (b0.c0, b0.kappa) == (0.0, 2.0) and b.c0 == 2.0
     assert b0._plan is b._plan
+
+
+def test_pickle_round_trip_gives_the_same_energy_and_hessian():
+    import pickle
+
+    m, X = _perturbed_icosphere(3, seed=9)
+    b = Bending.from_mesh(m, kappa=1.1, c0=2.0)
+    H = b.hessian(X)
+    b2 = pickle.loads(pickle.dumps(b))
+    assert b2.value(X) == b.value(X)
+    assert abs(b2.hessian(X) - H).max() == 0.0
 
 
 def test_cube_integrated_mean_curvature_is_steiner():

@@ -180,6 +180,7 @@ class Bending:
         """Exact (indefinite in general) Hessian, CSR ``(3V, 3V)``, vertex-major dofs."""
         p = self._plan
         XT = self._XT(X)
+        p.prepare_hessian()
         hk = hg.hinge_kernel(XT, p.HT, order=2)
         fk = hg.face_kernel(XT, p.FT, order=2)
         M, A = p.vertex_sums(hk.phi, fk.area)
@@ -216,11 +217,37 @@ class _Plan:
         rank[reverse_cuthill_mckee(adjacency, symmetric_mode=True)] = np.arange(V)
         HT = np.ascontiguousarray(HT[:, np.argsort(rank[HT].min(axis=0), kind="stable")])
         FT = np.ascontiguousarray(FT[:, np.argsort(rank[FT].min(axis=0), kind="stable")])
-        n_faces, n_hinges = FT.shape[1], HT.shape[1]
         self.V, self.FT, self.HT = V, FT, HT
         coord = np.arange(3)[:, None, None]
         self.hinge_dofs = (3 * HT[None] + coord).ravel()  # (3, 4, E) gradient layout
         self.face_dofs = (3 * FT[None] + coord).ravel()
+        self._valence, self._rank = valence, rank
+        self._lock = threading.Lock()
+        self._local = threading.local()
+        self._hessian_ready = False
+
+    def __getstate__(self):  # picklable (e.g. for process pools): drop the lock and scratch
+        state = self.__dict__.copy()
+        del state["_lock"], state["_local"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+        self._local = threading.local()
+
+    def prepare_hessian(self):
+        """Build the Hessian's index arrays on first use (value and gradient do not need them)."""
+        if not self._hessian_ready:
+            with self._lock:
+                if not self._hessian_ready:
+                    self._build_hessian_plan()
+                    self._hessian_ready = True
+
+    def _build_hessian_plan(self):
+        V, FT, HT, valence, rank = self.V, self.FT, self.HT, self._valence, self._rank
+        n_faces, n_hinges = FT.shape[1], HT.shape[1]
+        coord = np.arange(3)[:, None, None]
         # stars: slot 0 the vertex, then its neighbours
         centers = np.concatenate([HT[0], HT[1]])
         members = np.concatenate([HT[1], HT[0]])
@@ -315,7 +342,6 @@ class _Plan:
         indptr[:-1] = (9 * bptr[:-1, None] + 3 * np.arange(3) * nbl[:, None]).ravel()
         indptr[-1] = 9 * nb
         self.csr_from, self.indices, self.indptr = csr_from, indices, indptr
-        self._local = threading.local()
 
     # -------------------------------------------------------------- reductions
 
