@@ -65,8 +65,7 @@ The public functions take ``X (V, 3)`` and return vertex-major arrays: gradients
 (or ``(n, 3, 3)`` for faces), Hessians ``(n, 12, 12)`` (``(n, 9, 9)``) with local dof
 ``3 a + c``. Internally the kernels work coordinate-major (vectors ``(3, n)``, gradients
 ``(3, k, n)``, 3x3 blocks ``(3, 3, n)``) so that the bending energy can scatter them without
-transposing. All angles
-and derivatives are undefined for degenerate (zero-area) triangles.
+transposing. All angles and derivatives are undefined for degenerate (zero-area) triangles.
 """
 
 from __future__ import annotations
@@ -96,24 +95,8 @@ def _outer(u, v):
     return u[:, None, :] * v[None, :, :]
 
 
-def _sym(u, v):
-    o = _outer(u, v)
-    return o + o.transpose(1, 0, 2)
-
-
-def _skew(v):
-    """Cross-product matrices ``[v]_x`` (``[v]_x w = v x w``), shape ``(3, 3, n)``."""
-    z = np.zeros_like(v[0])
-    return np.stack([np.stack([z, -v[2], v[1]]),
-                     np.stack([v[2], z, -v[0]]),
-                     np.stack([-v[1], v[0], z])])
-
-
 def _T(m):
     return m.transpose(1, 0, 2)
-
-
-_EYE = np.eye(3)[:, :, None]
 
 
 def _coords(X):
