@@ -303,8 +303,78 @@ def _cmd_resume(args) -> int:
 
 
 
+def _register_view(sub) -> None:
+    """``shellbuckle view DIR [--out FILE.html] [--color C]``: interactive page of a run."""
+    parser = sub.add_parser(
+        "view", help="write a self-contained interactive HTML page of a run",
+        description="Write one self-contained HTML file (no network access needed to open it) "
+                    "showing the surface of every stored step of the run folder DIR: a step "
+                    "slider and play button, drag to rotate, wheel to zoom, a colour legend, "
+                    "the per-step table and the energies and pressure against dV/V. Colours: "
+                    "curvature (vertex mean curvature H, 1/R), strain (stretching energy per "
+                    "rest area of each triangle, kappa/R^2) or bending (bending energy per "
+                    "area, kappa/R^2); the page can switch between them.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("--out", metavar="FILE.html",
+                        help="page to write (default DIR/view.html)")
+    parser.add_argument("--color", default="curvature",
+                        help="initial colouring: curvature (default), strain or bending")
+
+    def run(args) -> int:
+        from pathlib import Path
+
+        from .plots.viewer import COLORS, write_html
+        from .run import Run
+
+        if args.color not in COLORS:
+            raise ValueError(f"--color must be one of {', '.join(COLORS)}, got {args.color!r}")
+        run = Run.open(args.dir)
+        out = Path(args.out) if args.out else run.path / "view.html"
+        path = write_html(run, out, color=args.color)
+        print(f"{path} ({path.stat().st_size / 1e6:.2f} MB, {len(run.steps)} steps)")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
+def _register_export(sub) -> None:
+    """``shellbuckle export DIR --step K --format FMT [--out PATH]``: one step to a mesh file."""
+    parser = sub.add_parser(
+        "export", help="export one step of a run to VTK, VTU, PLY, OBJ, STL or Surface Evolver",
+        description="Write step K of the run folder DIR as a mesh file: vtk or vtu (ParaView; "
+                    "point data H, displacement from the initial sphere and bending energy "
+                    "density, cell data stretching energy density), ply (scalar point data), "
+                    "obj, stl (geometry only), or fe: a Surface Evolver datafile with the run's "
+                    "moduli, c0, the initial sphere's rest metrics (form_factors) and the step's "
+                    "volume as the body's target, which Surface Evolver loads and can continue "
+                    "from with the same energy.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("--step", required=True, type=int, metavar="K",
+                        help="stored step number (negative counts from the last: -1 is the last)")
+    parser.add_argument("--format", required=True, metavar="FMT", dest="fmt",
+                        help="one of vtk, vtu, ply, obj, stl, fe")
+    parser.add_argument("--out", metavar="PATH",
+                        help="file to write (default <run folder name>_step<K>.<FMT> here)")
+
+    def run(args) -> int:
+        from .export import FORMATS, default_export_path, export_step, resolve_step
+        from .run import Run
+
+        fmt = args.fmt.lower().lstrip(".")
+        if fmt not in FORMATS:
+            raise ValueError(f"--format {args.fmt!r} is not supported; allowed: {', '.join(FORMATS)}")
+        run = Run.open(args.dir)
+        step = resolve_step(run, args.step)
+        out = args.out if args.out else default_export_path(run, step, fmt)
+        path = export_step(run, step, out, fmt=fmt)
+        print(f"step {step} of {run.path} written to {path}")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
 # Each entry adds one sub-command: register(subparsers) -> sets ``func`` via set_defaults.
-_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy]
+_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy, _register_view, _register_export]
 
 
 def main(argv=None) -> int:
