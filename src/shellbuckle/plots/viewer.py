@@ -18,12 +18,14 @@ space plays.
 
 Compactness: positions are quantized to uint16 on the bounding box of all steps (error at most
 ``extent / 131070``, 1.5e-5 R for a sphere of radius 1) and every colour field to the uint8
-index of its 256-colour scale, all little-endian base64. 3594 vertices x 50 steps make a page
-of about 2.7 MB.
+index of its 256-colour scale (range shared by all steps, the extreme 2 % of the values
+clipped), all little-endian base64: about 10 bytes per vertex and step, so 3612 vertices x 50
+steps make a page of 2.5 MB (tests/test_viewer.py::test_page_size_for_the_papers_mesh).
 
 After it has drawn a frame the page sets ``data-rendered`` (frames drawn), ``data-renderer``
-(``webgl`` or ``canvas2d``), ``data-step`` and ``data-triangles`` on its ``<html>`` element;
-a script error sets ``data-error``.
+(``webgl`` or ``canvas2d``), ``data-step``, ``data-triangles`` (of the first frame) and
+``data-frame-ms`` (time of the last draw call) on its ``<html>`` element; a script error sets
+``data-error``. The address may carry ``?step=K&color=strain&renderer=canvas2d``.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ _DIVERGING = ["#053061", "#2a71b2", "#6bacd1", "#c2ddec", "#f7f6f6", "#fbccb4", 
               "#ba2832", "#67001f"]
 _SEQUENTIAL = ["#440154", "#472d7b", "#3b528b", "#2c728e", "#21918c", "#28ae80", "#5ec962",
                "#addc30", "#fde725"]
-_CLIP_PERCENTILE = 99.5  # colour ranges ignore the most extreme 0.5 % of the values
+_CLIP_PERCENTILE = 98.0  # colour ranges ignore the most extreme 2 % of the values
 
 _TABLE_COLUMNS = {  # column -> header shown in the page
     "step": "step", "dV_over_V": "ΔV/V", "E_total": "E", "E_bend": "E_bend",
@@ -161,7 +163,7 @@ def _payload(run, color: str) -> dict:
                 f"R = {params.R:.4g}, c0 = {fields.c0:.4g} (c = c1 + c2), "
                 f"bending {protocol.bending}, c0 cycle {'on' if protocol.c0_cycle else 'off'}, "
                 f"{V} vertices, {F} faces · status {status}" + (f" ({message})" if message else ""))
-    note = ("Colours use one range for all steps (the extreme 0.5 % of values are clipped). "
+    note = ("Colours use one range for all steps (the extreme 2 % of values are clipped). "
             "Curvature: vertex mean curvature H = (c1 + c2)/2 of the run's bending "
             "discretization. Strain: stretching energy per rest area of each triangle. "
             "Bending: κ/2 (2H − c0)² per area at each vertex.")
@@ -239,7 +241,7 @@ def show(run, color: str = "curvature", height: int = 760):
             f.write(page)
         webbrowser.open(Path(name).as_uri())
         return Path(name)
-    frame = (f'<iframe srcdoc="{html.escape(page, quote=True)}" '
+    frame = (f'<div class="shellbuckle-view"><iframe srcdoc="{html.escape(page, quote=True)}" '
              f'style="width: 100%; height: {int(height)}px; border: 0;" '
-             'sandbox="allow-scripts"></iframe>')
+             'sandbox="allow-scripts"></iframe></div>')
     return HTML(frame)
