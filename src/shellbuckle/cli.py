@@ -238,9 +238,24 @@ def _cmd_deflate(args) -> int:
     from .mesh.random_sphere import random_sphere
     from .run import deflate, params_for_mesh, shell_from_file
 
+    from .protocol.deflate import Protocol
+
     choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
     if sum(choices) > 1:
         raise ValueError("give only one of --vertices, --icosphere and --mesh")
+    schedule = None
+    if args.schedule:
+        try:
+            schedule = [float(x) for x in args.schedule.split(",") if x.strip()]
+        except ValueError:
+            raise ValueError(f"--schedule must be comma-separated numbers, got {args.schedule!r}") from None
+    # refuse bad protocol options before any mesh is built
+    options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
+                   bending=args.bending, method=args.method, c0=args.c0)
+    if schedule is None:
+        Protocol.paper(dv=args.dv, until=args.until, **options)
+    else:
+        Protocol(schedule=tuple(schedule), **options)
     from_file = {}
     if args.mesh is not None:
         mesh, from_file = shell_from_file(args.mesh)
@@ -255,12 +270,6 @@ def _cmd_deflate(args) -> int:
         else:
             mesh = random_sphere(3594 if args.vertices is None else args.vertices,
                                  seed=args.seed, R=params.R)
-    schedule = None
-    if args.schedule:
-        try:
-            schedule = [float(x) for x in args.schedule.split(",") if x.strip()]
-        except ValueError:
-            raise ValueError(f"--schedule must be comma-separated numbers, got {args.schedule!r}") from None
     c0 = args.c0 if args.c0 is not None else from_file.get("c0")
     run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
