@@ -1,7 +1,7 @@
 """Interactive viewer of a run: one self-contained HTML page (no network access needed).
 
 The page (template ``viewer.html`` beside this module) shows the surface of every stored step
-with a step slider and a play button, coloured by one of
+with a step slider and a play button (opening at the last step), coloured by one of
 
 - ``curvature``: vertex mean curvature ``H = (c1 + c2)/2`` of the run's bending discretization,
   in ``1/R``, on a diverging scale centred on 0 (negative where the surface is inverted);
@@ -169,7 +169,7 @@ def _payload(run, color: str) -> dict:
             "Bending: κ/2 (2H − c0)² per area at each vertex.")
     return {
         "title": title, "subtitle": subtitle, "note": note,
-        "n_vertices": V, "n_faces": F, "steps": steps, "start": 0,
+        "n_vertices": V, "n_faces": F, "steps": steps, "start": len(steps) - 1,
         "faces_dtype": "uint16" if V <= 65535 else "uint32",
         "faces": _b64(faces, "<u2" if V <= 65535 else "<u4"),
         "positions": _b64(q, "<u2"),
