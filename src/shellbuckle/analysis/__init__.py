@@ -1,0 +1,21 @@
+"""Automatic analysis of conformations and runs (SPEC §4; Quilliet et al. 2008, §4.2-4.4).
+
+- :func:`describe` (X, faces) -> dict of shape descriptors (:mod:`.descriptors`: asphericity,
+  dents, dent axis and depth, rim curve and its Fourier spectrum, self-contact distance);
+- :func:`classify` (X, faces) -> :class:`Classification` (``sphere``, ``dimples``,
+  ``capsule``, ``polygonal``, ``wrinkled``, ``other``; ``n_dimples``, ``corners``, ``W``);
+- :func:`analyze_run` (run or folder): classifies every step and stores the analysis columns;
+- :func:`events` (run or folder): primary buckling, loss of axisymmetry, wrinkles, inertia
+  changes, each with its dV/V; :func:`thresholds` the first three as a dict.
+
+The named thresholds and their calibration are documented in ``docs/analysis.md``.
+"""
+
+from .classify import (RUN_COLUMNS, SHAPES, Classification, analyze_run, classify,
+                       classify_descriptors, classify_run)
+from .descriptors import Descriptors, ShapeAnalyzer, describe
+from .events import Event, events, thresholds
+
+__all__ = ["RUN_COLUMNS", "SHAPES", "Classification", "Descriptors", "Event", "ShapeAnalyzer",
+           "analyze_run", "classify", "classify_descriptors", "classify_run", "describe",
+           "events", "thresholds"]

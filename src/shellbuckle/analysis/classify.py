@@ -1,0 +1,207 @@
+"""Classification of a conformation: sphere, dimples, capsule, polygonal, wrinkled, other.
+
+The classes follow Quilliet et al. (EPJE 27, 13 (2008), §4.2-4.4), decided from the
+descriptors of :mod:`.descriptors` and :mod:`.wrinkles`:
+
+``sphere``
+    no dent (no inverted-curvature region larger than the noise size).
+``dimples``
+    two or more separate dents, ``n_dimples`` of them: the paper's "potato" shapes obtained
+    without the zero-spontaneous-curvature cycle.
+``capsule``
+    one dent whose rim is axisymmetric: every Fourier mode ``m >= 2`` of the rim radius has a
+    relative amplitude below the axisymmetry threshold (below).
+``polygonal``
+    one dent whose rim lost axisymmetry (some mode ``m >= 2`` above the threshold) with
+    ``corners`` apices (prominent maxima of the rim radius), the rim not concave between them.
+``wrinkled``
+    a polygonal rim that is concave between successive apices on at least
+    ``WRINKLED_FRACTION`` of its arcs: ``W`` wrinkles, ``W = corners``.
+``other``
+    one dent whose rim cannot be traced around its axis, or a non-axisymmetric rim with fewer
+    than two apices.
+
+The axisymmetry threshold is ``max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES h / rim_radius)``
+with ``h`` the mean edge length: the rim is located to a fraction of an edge, so the noise
+floor of the mode amplitudes scales as ``h / rim_radius`` (calibration in docs/analysis.md).
+``corners`` and ``W`` are 0 where they do not apply (``W`` counts wrinkles only on wrinkled
+rims, as the paper's Fig. 4 does).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import wrinkles
+from .descriptors import Descriptors, ShapeAnalyzer
+
+SHAPES = ("sphere", "dimples", "capsule", "polygonal", "wrinkled", "other")
+
+#: A rim is axisymmetric when all its modes m >= 2 have relative amplitudes below
+#: max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES * h / rim_radius).
+AXISYMMETRY_THRESHOLD = 0.01
+AXISYMMETRY_EDGES = 0.15
+#: A non-axisymmetric rim is wrinkled when at least this fraction of its arcs between
+#: successive apices (and at least two arcs) are concave (:data:`wrinkles.CONCAVITY`).
+WRINKLED_FRACTION = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class Classification:
+    """The class of a conformation and the numbers behind it.
+
+    ``shape`` (one of :data:`SHAPES`), ``n_dimples``, ``corners``, ``W``; the dent's
+    ``dent_depth`` (indentation), ``dent_sagitta``, ``dent_axis (3,)`` (unit, out of the dent;
+    ``None`` without a dent), ``rim_radius``, ``rim_spectrum (N_MODES,)`` (relative amplitudes of
+    the modes ``m = 1..N_MODES``), ``dominant_mode`` and ``dominant_amplitude`` (largest mode
+    ``m >= 2``), ``axisymmetry_threshold`` used, ``concave_arcs``; ``asphericity``,
+    ``contact_distance``; and all ``descriptors``.
+    """
+
+    shape: str
+    n_dimples: int
+    corners: int
+    W: int
+    dent_depth: float
+    dent_sagitta: float
+    dent_axis: tuple | None
+    rim_radius: float
+    rim_spectrum: tuple | None
+    dominant_mode: int
+    dominant_amplitude: float
+    axisymmetry_threshold: float
+    concave_arcs: int
+    asphericity: float
+    contact_distance: float
+    descriptors: Descriptors = field(repr=False)
+
+    def columns(self) -> dict:
+        """Flat scalar values for the per-step table (``shape``, ``n_dimples``, ``corners``,
+        ``W`` and the dent and rim numbers)."""
+        return {"shape": self.shape, "n_dimples": self.n_dimples, "corners": self.corners,
+                "W": self.W, "dent_depth": self.dent_depth, "dent_sagitta": self.dent_sagitta,
+                "rim_radius": self.rim_radius, "rim_mode": self.dominant_mode,
+                "rim_amplitude": self.dominant_amplitude, "concave_arcs": self.concave_arcs,
+                "asphericity": self.asphericity, "contact_distance": self.contact_distance}
+
+    def as_dict(self) -> dict:
+        """JSON-able summary (vectors as lists), with the full descriptors under
+        ``descriptors``."""
+        out = self.columns()
+        out["dent_axis"] = None if self.dent_axis is None else list(self.dent_axis)
+        out["rim_spectrum"] = None if self.rim_spectrum is None else list(self.rim_spectrum)
+        out["axisymmetry_threshold"] = self.axisymmetry_threshold
+        out["descriptors"] = self.descriptors.as_dict()
+        return out
+
+
+def axisymmetry_threshold(rim: wrinkles.Rim, mean_edge: float) -> float:
+    """Relative mode amplitude above which ``rim`` is not axisymmetric (module docstring)."""
+    return max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES * mean_edge / rim.radius)
+
+
+def classify_descriptors(d: Descriptors) -> Classification:
+    """Classify a conformation from its :class:`~.descriptors.Descriptors`."""
+    rim = d.rim
+    n = d.n_dimples
+    corners = W = 0
+    threshold = math.nan
+    if n == 0:
+        shape = "sphere"
+    elif n >= 2:
+        shape = "dimples"
+    elif rim is None:
+        shape = "other"
+    else:
+        threshold = axisymmetry_threshold(rim, d.geometry.mean_edge)
+        if rim.dominant_amplitude < threshold:
+            shape = "capsule"
+        elif rim.n_apices < 2:
+            shape = "other"
+        else:
+            corners = rim.n_apices
+            concave = rim.n_concave
+            if concave >= 2 and concave >= WRINKLED_FRACTION * rim.n_apices:
+                shape, W = "wrinkled", corners
+            else:
+                shape = "polygonal"
+    main = d.dents[0] if d.dents else None
+    axis = rim.axis if rim is not None else (main.axis if main is not None else None)
+    return Classification(
+        shape=shape, n_dimples=n, corners=corners, W=W, dent_depth=d.dent_depth,
+        dent_sagitta=d.dent_sagitta,
+        dent_axis=None if axis is None else tuple(float(v) for v in axis),
+        rim_radius=rim.radius if rim is not None else math.nan,
+        rim_spectrum=None if rim is None else tuple(float(v) for v in rim.spectrum),
+        dominant_mode=rim.dominant_mode if rim is not None else 0,
+        dominant_amplitude=rim.dominant_amplitude if rim is not None else math.nan,
+        axisymmetry_threshold=threshold,
+        concave_arcs=rim.n_concave if rim is not None else 0,
+        asphericity=d.asphericity, contact_distance=d.contact_distance, descriptors=d)
+
+
+def classify(X, faces) -> Classification:
+    """Classify one conformation: positions ``X (V, 3)`` on the closed, outward-oriented
+    triangulation ``faces (F, 3)``. To classify many conformations of one mesh, build a
+    :class:`~.descriptors.ShapeAnalyzer` once and call :func:`classify_descriptors` on
+    ``analyzer.describe(X)``."""
+    X = np.asarray(X, dtype=np.float64)
+    return classify_descriptors(ShapeAnalyzer(faces, n_vertices=len(X)).describe(X))
+
+
+# ---------------------------------------------------------------------- runs
+
+#: Analysis columns written by :func:`analyze_run` (the first four are SPEC §7's).
+RUN_COLUMNS = ("shape", "n_dimples", "corners", "W", "dent_depth", "dent_sagitta",
+               "rim_radius", "rim_mode", "rim_amplitude", "concave_arcs", "asphericity",
+               "contact_distance")
+
+
+def _open_run(run_or_path):
+    if isinstance(run_or_path, (str, bytes)) or hasattr(run_or_path, "__fspath__"):
+        from ..run import Run
+
+        return Run.open(run_or_path)
+    return run_or_path
+
+
+def _clean(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
+    """Classify the conformations of a stored run without writing anything.
+
+    ``run_or_path``: a :class:`shellbuckle.run.Run` or a run folder. ``steps``: the steps to
+    classify (default all finished steps). Returns ``{step: Classification}``.
+    """
+    run = _open_run(run_or_path)
+    steps = list(run.steps) if steps is None else [int(k) for k in steps]
+    analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.store.X0))
+    iterator = steps
+    if progress:
+        from tqdm.auto import tqdm
+
+        iterator = tqdm(steps, unit="step", desc="analysis", dynamic_ncols=True)
+    return {k: classify_descriptors(analyzer.describe(run.positions(k))) for k in iterator}
+
+
+def analyze_run(run_or_path, steps=None, progress: bool = False):
+    """Classify every step of a run and store the analysis columns in it.
+
+    Writes :data:`RUN_COLUMNS` for each step with
+    :meth:`shellbuckle.store.RunStore.update_analysis` (atomic, allowed while the run is still
+    being computed; non-finite numbers are stored as null) and returns the run's table (a
+    pandas DataFrame) with the columns filled in. ``steps`` restricts the work to some steps
+    (default: all finished steps, refreshing earlier results).
+    """
+    run = _open_run(run_or_path)
+    results = classify_run(run, steps=steps, progress=progress)
+    run.store.update_analysis({k: {name: _clean(value) for name, value in c.columns().items()}
+                               for k, c in results.items()})
+    return run.table

@@ -1,0 +1,380 @@
+"""Shape descriptors of one conformation: asphericity, dents, dent frame and depth, contact.
+
+A conformation is vertex positions ``X (V, 3)`` on a closed, outward-oriented triangulation
+``faces (F, 3)``. Lengths are in the units of ``X``; thresholds are relative to the
+conformation's own size ``R_area = sqrt(area / 4 pi)`` (the radius of the sphere with the
+same area, which the membrane keeps to within the strain, i.e. ``R`` to a few per cent), so
+the descriptors do not depend on the unit of length.
+
+Dents (inverted-curvature regions)
+----------------------------------
+``H_i`` is Jülicher's mean curvature (:class:`shellbuckle.energies.bending.Bending`,
+``H = (c1 + c2) / 2``, ``1/R`` on a sphere, negative where the surface is concave seen from
+outside). The vertices with ``H_i < 0`` split into connected components on the edge graph of
+the mesh. A component is a *dent* when its area (sum of the vertex areas
+``A_i = 1/3 sum_{f at i} area_f``) is at least ``pi (MIN_DENT_RADIUS R_area)^2``; smaller
+components are curvature noise of the discretization. ``n_dimples`` is the number of dents.
+
+Dent frame
+----------
+The *dent axis* ``u`` of a dent is the unit vector area of the surface bounded by its rim,
+``u ∝ sum_i A_i n_i`` over the dent's bowl (``n_i`` the area-weighted vertex normals). By
+Stokes, the vector area of a surface patch only depends on its boundary curve, so ``u`` is the
+normal of the rim's plane, pointing out of the dent (from the body towards the opening),
+whatever the depth. (The line from the body's centroid to the dent's centroid, the obvious
+alternative, turns over for an inverted cap at alpha = 90 deg, i.e. dV/V = 1/2, where the two
+centroids coincide.) The frame origin ``o`` is on the dent's symmetry axis: first the
+area-weighted centroid of the dent, then the centroid of the area enclosed by the rim's
+projection (:mod:`.wrinkles`). ``z = (x - o) . u`` is the height along the axis.
+
+Dent depth
+----------
+``dent_depth`` (the indentation ``delta``): the distance along ``u`` from the deepest point
+of the dent to the apex, along ``u``, of the sphere fitted by least squares to the vertices
+outside the dent's bowl (the undented part of the shell). For an inverted spherical cap of
+half-angle ``alpha`` on a sphere of radius ``R`` (mirror buckling) this is the displacement of
+the pole, ``2 (1 - cos alpha) R``, the ``delta`` of Pogorelov's theory.
+``dent_sagitta``: the height of the mean rim plane (mean ``z`` of the rim curve) above the
+deepest point, ``(1 - cos alpha) R`` for the inverted cap. ``rim_radius``: the mean distance of
+the rim from the axis, ``sin(alpha) R`` for the inverted cap.
+
+Other descriptors
+-----------------
+``asphericity``: with ``l1 <= l2 <= l3`` the eigenvalues of the area-weighted gyration tensor
+``G = sum_i A_i (x_i - xbar)(x_i - xbar)^T / sum_i A_i``,
+``((l1 - l2)^2 + (l2 - l3)^2 + (l3 - l1)^2) / (2 (l1 + l2 + l3)^2)``, 0 for a sphere (and
+any shape with cubic symmetry), 1 for a segment. ``contact_distance``: the smallest distance
+between two vertices more than two edges apart
+(:meth:`shellbuckle.mesh.contact.ContactChecker.min_vertex_distance`), i.e. how close the
+dent's floor has come to the opposite side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..energies.bending import Bending
+from ..mesh.topology import Topology
+from . import wrinkles
+
+#: A component of the inverted-curvature region (``H < 0``) is a dent when its area is at least
+#: ``pi (MIN_DENT_RADIUS R_area)^2``. Calibration (docs/analysis.md): spheres jiggled by up to
+#: 0.3 mean edge lengths and all pre-buckling steps of real runs have no vertex with ``H < 0``;
+#: after buckling the largest spurious component is below ``0.05 R`` while the smallest real
+#: dimple of the paper's "potato" shapes is above ``0.2 R``.
+MIN_DENT_RADIUS = 0.1
+#: Before the sign of H is taken, H is smoothed (:meth:`Geometry.smooth`) over
+#: max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES h), h the mean edge length: the discrete
+#: mean curvature of a rough mesh is noisy at the vertex scale.
+H_SMOOTHING_LENGTH = 0.02
+H_SMOOTHING_EDGES = 1.25
+#: Implicit diffusion steps of :meth:`Geometry.smooth` (more steps: closer to a Gaussian kernel).
+SMOOTHING_STEPS = 4
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Per-vertex and global geometry of one conformation.
+
+    ``X (V, 3)``; ``face_area (F,)``; ``vertex_area (V,)`` (``1/3`` of the adjacent face
+    areas); ``vertex_normal (V, 3)`` unit, area-weighted mean of the outward face normals;
+    ``H (V,)`` Jülicher mean curvature; ``area``, ``volume`` (enclosed, positive for outward
+    faces), ``R_area = sqrt(area / 4 pi)`` and ``mean_edge`` (mean edge length).
+    """
+
+    X: np.ndarray
+    face_area: np.ndarray
+    vertex_area: np.ndarray
+    vertex_normal: np.ndarray
+    H: np.ndarray
+    area: float
+    volume: float
+    R_area: float
+    mean_edge: float
+    stiffness: sp.csr_matrix = field(repr=False)
+    _factors: dict = field(default_factory=dict, repr=False)
+
+    def smooth(self, values, length: float) -> np.ndarray:
+        """``values (V,)`` or ``(V, k)`` smoothed over ``length`` by diffusion on the surface.
+
+        ``SMOOTHING_STEPS`` implicit steps of the heat equation ``ds/dt = Laplace(s)`` (cotangent
+        Laplacian: ``K`` the P1 stiffness matrix, ``M = diag(vertex_area)``),
+        ``(M + tau K) s_new = M s``, ``tau = length^2 / (2 SMOOTHING_STEPS)``: on a flat region
+        the result approaches a Gaussian average of standard deviation ``length`` in each
+        direction, independently of the mesh. ``length <= 0`` returns the values unchanged.
+        """
+        f = np.asarray(values, dtype=np.float64)
+        if length <= 0:
+            return f
+        key = float(length)
+        if key not in self._factors:
+            from scipy.sparse.linalg import splu
+
+            tau = key * key / (2.0 * SMOOTHING_STEPS)
+            self._factors[key] = splu((sp.diags(self.vertex_area) + tau * self.stiffness).tocsc())
+        s = f.reshape(len(f), -1)
+        for _ in range(SMOOTHING_STEPS):
+            s = self._factors[key].solve(self.vertex_area[:, None] * s)
+        return s.reshape(f.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class Dent:
+    """One dent: its vertices ``vertices (n,)`` (indices), ``area``, the area-weighted
+    ``centre (3,)`` and the unit ``axis (3,)`` (vector area of the dent, pointing out of it)."""
+
+    vertices: np.ndarray
+    area: float
+    centre: np.ndarray
+    axis: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Descriptors:
+    """Descriptors of one conformation (see the module docstring for the definitions).
+
+    ``dents`` are sorted by decreasing area; ``rim`` is the rim of the largest dent
+    (:class:`shellbuckle.analysis.wrinkles.Rim`) when exactly that dent could be framed, else
+    ``None``. Lengths in the units of ``X``.
+    """
+
+    geometry: Geometry = field(repr=False)
+    asphericity: float
+    gyration: np.ndarray
+    dents: tuple
+    rim: "wrinkles.Rim | None"
+    dent_depth: float
+    dent_sagitta: float
+    contact_distance: float
+
+    @property
+    def n_dimples(self) -> int:
+        return len(self.dents)
+
+    def as_dict(self) -> dict:
+        """Plain JSON-able values (lists for vectors); NaN where a quantity does not apply."""
+        g = self.geometry
+        rim = self.rim
+        main = self.dents[0] if self.dents else None
+        out = {
+            "n_vertices": int(len(g.X)), "area": g.area, "volume": g.volume, "R_area": g.R_area,
+            "mean_edge": g.mean_edge, "asphericity": self.asphericity,
+            "gyration_eigenvalues": [float(v) for v in self.gyration],
+            "H_min": float(g.H.min()), "H_max": float(g.H.max()),
+            "n_dimples": self.n_dimples,
+            "dimple_areas": [float(d.area) for d in self.dents],
+            "dent_area": float(main.area) if main else math.nan,
+            "dent_axis": [float(v) for v in rim.axis] if rim else (
+                [float(v) for v in main.axis] if main else None),
+            "dent_centre": [float(v) for v in rim.origin] if rim else (
+                [float(v) for v in main.centre] if main else None),
+            "dent_depth": self.dent_depth, "dent_sagitta": self.dent_sagitta,
+            "contact_distance": self.contact_distance,
+        }
+        out.update(wrinkles.rim_summary(rim))
+        return out
+
+
+class ShapeAnalyzer:
+    """Descriptors of conformations of one triangulation, with the per-topology work done once.
+
+    ``faces (F, 3)`` (closed, outward oriented) or a :class:`~shellbuckle.mesh.Topology`;
+    ``contact``: also measure the self-contact distance (builds a
+    :class:`~shellbuckle.mesh.contact.ContactChecker` on first use).
+    """
+
+    def __init__(self, faces_or_topology, n_vertices: int | None = None, contact: bool = True):
+        if isinstance(faces_or_topology, Topology):
+            topology = faces_or_topology
+        else:
+            topology = Topology.from_faces(np.asarray(faces_or_topology), n_vertices)
+        self.topology = topology
+        self.bending = Bending.from_mesh(topology)
+        self.contact = contact
+        self._checker = None
+        V = topology.n_vertices
+        e = topology.edges
+        self._adjacency = sp.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
+
+    # ------------------------------------------------------------------ geometry
+
+    def geometry(self, X) -> Geometry:
+        X = np.asarray(X, dtype=np.float64)
+        V = self.topology.n_vertices
+        if X.shape != (V, 3):
+            raise ValueError(f"positions must have shape ({V}, 3) for this mesh, got {X.shape}")
+        if not np.isfinite(X).all():
+            v = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
+            raise ValueError(f"vertex {v} has a non-finite coordinate {X[v].tolist()}")
+        F = self.topology.faces
+        x0, x1, x2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+        n = np.cross(x1 - x0, x2 - x0)
+        face_area = 0.5 * np.linalg.norm(n, axis=1)
+        vertex_area = np.bincount(F.ravel(), np.repeat(face_area, 3), minlength=V) / 3.0
+        normal = np.stack([np.bincount(F.ravel(), np.repeat(n[:, c], 3), minlength=V)
+                           for c in range(3)], axis=1)
+        area = float(face_area.sum())
+        volume = float(np.einsum("ij,ij->i", x0, np.cross(x1, x2)).sum() / 6.0)
+        e = self.topology.edges
+        mean_edge = float(np.linalg.norm(X[e[:, 1]] - X[e[:, 0]], axis=1).mean())
+        H = self.bending.mean_curvature(X)
+        return Geometry(X=X, face_area=face_area, vertex_area=vertex_area,
+                        vertex_normal=_unit(normal), H=H, area=area, volume=volume,
+                        R_area=math.sqrt(area / (4.0 * math.pi)), mean_edge=mean_edge,
+                        stiffness=_cotan_stiffness(X, F, 2.0 * face_area))
+
+    # ------------------------------------------------------------------ dents
+
+    def components(self, mask: np.ndarray) -> np.ndarray:
+        """Labels ``(V,)`` of the connected components of the vertex set ``mask`` on the edge
+        graph (``-1`` outside ``mask``), numbered from 0."""
+        mask = np.asarray(mask, dtype=bool)
+        e = self.topology.edges
+        keep = mask[e[:, 0]] & mask[e[:, 1]]
+        V = self.topology.n_vertices
+        graph = sp.csr_matrix((np.ones(int(keep.sum())), (e[keep, 0], e[keep, 1])), shape=(V, V))
+        _, labels = connected_components(graph, directed=False)
+        _, labels_in = np.unique(labels[mask], return_inverse=True)
+        out = np.full(V, -1, dtype=np.int64)
+        out[mask] = labels_in
+        return out
+
+    def inverted_components(self, geom: Geometry) -> list:
+        """All connected components of ``H < 0`` as :class:`Dent` objects, largest first."""
+        length = max(H_SMOOTHING_LENGTH * geom.R_area, H_SMOOTHING_EDGES * geom.mean_edge)
+        labels = self.components(geom.smooth(geom.H, length) < 0.0)
+        if labels.max() < 0:
+            return []
+        inside = labels >= 0
+        areas = np.bincount(labels[inside], geom.vertex_area[inside])
+        groups = np.split(np.argsort(labels, kind="stable")[np.count_nonzero(~inside):],
+                          np.cumsum(np.bincount(labels[inside]))[:-1])
+        order = np.argsort(-areas, kind="stable")
+        return [_dent(geom, groups[c]) for c in order]
+
+    def dents(self, geom: Geometry, min_radius: float = MIN_DENT_RADIUS):
+        """Dents of a conformation, largest first, and the rim of the largest (or ``None``).
+
+        Each component of ``H < 0`` with an area of at least ``pi (min_radius R_area)^2``
+        seeds a dent; the components (of any size) lying mostly (by area) inside the bowl of
+        a larger dent belong to it, so a depression cut by folds of positive curvature counts
+        once. Returns ``(dents, rim)``.
+        """
+        remaining = self.inverted_components(geom)
+        threshold = math.pi * (min_radius * geom.R_area) ** 2
+        dents, main_rim = [], None
+        while remaining and remaining[0].area >= threshold:
+            seed = remaining.pop(0)
+            rim = wrinkles.find_rim(geom, self.topology, seed, self.components)
+            if rim is not None and remaining:
+                inside = [c for c in remaining
+                          if geom.vertex_area[c.vertices][rim.bowl[c.vertices]].sum() > 0.5 * c.area]
+                if inside:
+                    seed = _dent(geom, np.concatenate([seed.vertices] + [c.vertices for c in inside]))
+                    remaining = [c for c in remaining if not any(c is i for i in inside)]
+                    rim = wrinkles.find_rim(geom, self.topology, seed, self.components)
+            if not dents:
+                main_rim = rim
+            dents.append(seed)
+        return tuple(dents), main_rim
+
+    # ------------------------------------------------------------------ all descriptors
+
+    def contact_distance(self, X) -> float:
+        if not self.contact:
+            return math.nan
+        if self._checker is None:
+            from ..mesh.contact import ContactChecker
+
+            self._checker = ContactChecker(self.topology, rings=2)
+        return float(self._checker.min_vertex_distance(X)[0])
+
+    def describe(self, X) -> Descriptors:
+        """All descriptors of positions ``X (V, 3)``."""
+        geom = self.geometry(X)
+        w = geom.vertex_area
+        xbar = (w[:, None] * geom.X).sum(axis=0) / w.sum()
+        d = geom.X - xbar
+        gyration = np.linalg.eigvalsh(np.einsum("i,ij,ik->jk", w, d, d) / w.sum())
+        l1, l2, l3 = gyration
+        asphericity = float(((l1 - l2) ** 2 + (l2 - l3) ** 2 + (l3 - l1) ** 2)
+                            / (2.0 * (l1 + l2 + l3) ** 2))
+        dents, rim = self.dents(geom)
+        depth, sagitta = _depths(geom, rim) if rim is not None else (math.nan, math.nan)
+        return Descriptors(geometry=geom, asphericity=asphericity, gyration=gyration,
+                           dents=dents, rim=rim, dent_depth=depth, dent_sagitta=sagitta,
+                           contact_distance=self.contact_distance(geom.X))
+
+
+def _dent(geom: Geometry, idx: np.ndarray) -> Dent:
+    idx = np.sort(idx)
+    w = geom.vertex_area[idx]
+    centre = (w[:, None] * geom.X[idx]).sum(axis=0) / w.sum()
+    axis = _unit((w[:, None] * geom.vertex_normal[idx]).sum(axis=0))
+    return Dent(vertices=idx, area=float(w.sum()), centre=centre, axis=axis)
+
+
+def _cotan_stiffness(X, F, double_area) -> sp.csr_matrix:
+    """P1 stiffness matrix ``K_ij = -(cot a_ij + cot b_ij) / 2``, ``K_ii = -sum_j K_ij``
+    (symmetric positive semi-definite for any triangle shapes), ``(V, V)`` CSR."""
+    V = len(X)
+    rows, cols, vals = [], [], []
+    for c in range(3):
+        i, j, k = F[:, c], F[:, (c + 1) % 3], F[:, (c + 2) % 3]
+        a, b = X[j] - X[i], X[k] - X[i]
+        cot = np.einsum("ij,ij->i", a, b) / np.maximum(double_area, 1e-300)
+        w = 0.5 * cot  # weight of the edge (j, k) opposite corner i
+        rows += [j, k, j, k]
+        cols += [k, j, j, k]
+        vals += [-w, -w, w, w]
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(V, V))
+
+
+def _fit_sphere(P: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
+    """Weighted algebraic least-squares sphere ``|x|^2 = 2 c.x + k`` through points ``P (n, 3)``:
+    centre ``c`` and radius ``sqrt(k + |c|^2)``."""
+    sw = np.sqrt(w)[:, None]
+    M = np.hstack([2.0 * P, np.ones((len(P), 1))]) * sw
+    rhs = (P * P).sum(axis=1)[:, None] * sw
+    sol = np.linalg.lstsq(M, rhs, rcond=None)[0].ravel()
+    c, k = sol[:3], sol[3]
+    return c, float(math.sqrt(max(k + c @ c, 0.0)))
+
+
+def _depths(geom: Geometry, rim) -> tuple[float, float]:
+    """Indentation ``delta`` and sagitta of the framed dent (module docstring)."""
+    z = (geom.X - rim.origin) @ rim.axis
+    bowl = rim.bowl
+    z_min = float(z[bowl].min())
+    sagitta = float(np.mean(rim.z) - z_min)
+    outside = ~bowl
+    if outside.sum() < 4:
+        return math.nan, sagitta
+    c, radius = _fit_sphere(geom.X[outside], geom.vertex_area[outside])
+    apex = float((c - rim.origin) @ rim.axis + radius)
+    return apex - z_min, sagitta
+
+
+def describe(X, faces) -> dict:
+    """Descriptors of one conformation as a plain dict (see :class:`Descriptors`).
+
+    ``X (V, 3)`` positions, ``faces (F, 3)`` closed and outward oriented. Keys: ``area``,
+    ``volume``, ``R_area``, ``asphericity``, ``gyration_eigenvalues``, ``n_dimples``,
+    ``dimple_areas``, ``dent_axis``, ``dent_centre``, ``dent_depth``, ``dent_sagitta``,
+    ``rim_radius``, ``rim_height``, ``rim_spectrum`` (relative amplitudes of the modes
+    ``m = 1..20`` of the rim radius), ``rim_apices``, ``rim_concave_arcs``,
+    ``contact_distance``, ...
+    """
+    X = np.asarray(X, dtype=np.float64)
+    return ShapeAnalyzer(faces, n_vertices=len(X)).describe(X).as_dict()

@@ -1,0 +1,156 @@
+"""Buckling events along a deflation run, found from its table and conformations.
+
+Quilliet et al. (EPJE 27, 13 (2008), §4.4, Fig. 10) read three thresholds off their runs by
+eye; here they are found from the per-step classification (:mod:`.classify`) and the recorded
+pressure, energies and Hessian inertia:
+
+``primary_buckling``
+    the first step whose shape is not ``sphere`` (sphere -> one dent, or dimples). It is
+    *confirmed* when the pressure (the Lagrange multiplier of the volume constraint) drops at
+    that step, ``p_k < (1 - PRESSURE_DROP) p_(k-1)``, or, without pressures, the stretching
+    energy drops while the bending energy jumps (the snap-through of Fig. 9).
+``axisymmetry_loss``
+    the paper's first secondary threshold, polygonization of the rim: the first step after
+    primary buckling from which the shape is ``polygonal`` or ``wrinkled`` for
+    ``PERSISTENCE`` consecutive steps (or until the last step).
+``wrinkles``
+    the paper's second secondary threshold, a rim concave between its apices: the first step
+    from which the shape is ``wrinkled`` for ``PERSISTENCE`` consecutive steps.
+``inertia_change``
+    every step where the number of negative eigenvalues of the constrained Hessian at the
+    accepted state (column ``inertia``, ``-1`` where not computed) differs from the previous
+    step's.
+
+Each event gives the step and its ``dV_over_V`` (the relative volume change reached at that
+step, so the threshold lies between the previous step's value and this one).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Relative pressure drop at a step that confirms a snap-through (primary buckling).
+PRESSURE_DROP = 0.2
+#: A secondary threshold is the first step from which its class holds this many steps in a row.
+PERSISTENCE = 2
+
+EVENT_NAMES = ("primary_buckling", "axisymmetry_loss", "wrinkles", "inertia_change")
+
+
+@dataclass(frozen=True)
+class Event:
+    """One event: ``name`` (one of :data:`EVENT_NAMES`), ``step``, ``dV_over_V`` at that step,
+    ``confirmed`` (primary buckling: whether pressure/energies agree with the shape; None for
+    the others) and a one-line ``description``."""
+
+    name: str
+    step: int
+    dV_over_V: float
+    confirmed: bool | None
+    description: str
+
+
+def _table_with_shapes(run, table):
+    if table is None:
+        table = run.table
+    if "shape" not in table.columns or table["shape"].isna().any():
+        from .classify import classify_run
+
+        missing = (list(table["step"]) if "shape" not in table.columns
+                   else list(table.loc[table["shape"].isna(), "step"]))
+        results = classify_run(run, steps=missing)
+        table = table.copy()
+        if "shape" not in table.columns:
+            table["shape"] = None
+            table["W"] = 0
+            table["corners"] = 0
+        for k, c in results.items():
+            row = table.index[table["step"] == k]
+            table.loc[row, "shape"] = c.shape
+            table.loc[row, "W"] = c.W
+            table.loc[row, "corners"] = c.corners
+    return table
+
+
+def _first_persistent(flags: np.ndarray, start: int, persistence: int) -> int | None:
+    """First index ``i >= start`` with ``flags[i : i + persistence]`` all true (shorter at the
+    end of the array)."""
+    n = len(flags)
+    for i in range(start, n):
+        if flags[i:min(n, i + persistence)].all():
+            return i
+    return None
+
+
+def _primary_confirmation(table, i: int) -> tuple[bool, str]:
+    if i == 0:
+        return False, "already buckled at the first step"
+    prev, cur = table.iloc[i - 1], table.iloc[i]
+    p0, p1 = float(prev.get("pressure", math.nan)), float(cur.get("pressure", math.nan))
+    if math.isfinite(p0) and math.isfinite(p1) and p0 > 0:
+        drop = 1.0 - p1 / p0
+        return drop >= PRESSURE_DROP, f"pressure {p0:.4g} -> {p1:.4g} ({100 * drop:.0f} % drop)"
+    s0, s1 = float(prev.get("E_stretch", math.nan)), float(cur.get("E_stretch", math.nan))
+    b0, b1 = float(prev.get("E_bend", math.nan)), float(cur.get("E_bend", math.nan))
+    if all(map(math.isfinite, (s0, s1, b0, b1))):
+        ok = s1 < s0 and b1 > b0
+        return ok, f"E_stretch {s0:.4g} -> {s1:.4g}, E_bend {b0:.4g} -> {b1:.4g}"
+    return False, "no pressure or energies to confirm"
+
+
+def events(run_or_path, table=None) -> list[Event]:
+    """Buckling events of a run (module docstring), in order of step.
+
+    ``run_or_path``: a :class:`shellbuckle.run.Run` or a run folder. Uses the stored analysis
+    columns when every step has them, and classifies the missing steps otherwise (without
+    writing; :func:`shellbuckle.analysis.analyze_run` stores them). ``table`` may be given to
+    avoid re-reading it.
+    """
+    from .classify import _open_run
+
+    run = _open_run(run_or_path)
+    table = _table_with_shapes(run, table).reset_index(drop=True)
+    if table.empty:
+        return []
+    shape = table["shape"].astype(str).to_numpy()
+    dv = table["dV_over_V"].to_numpy(dtype=float)
+    step = table["step"].to_numpy(dtype=int)
+    out: list[Event] = []
+    buckled = shape != "sphere"
+    if buckled.any():
+        i = int(np.argmax(buckled))
+        ok, why = _primary_confirmation(table, i)
+        out.append(Event("primary_buckling", int(step[i]), float(dv[i]), ok,
+                         f"{shape[i - 1] if i else 'start'} -> {shape[i]}; {why}"))
+        lost = np.isin(shape, ("polygonal", "wrinkled"))
+        j = _first_persistent(lost, i, PERSISTENCE)
+        if j is not None:
+            corners = int(table["corners"].iloc[j]) if "corners" in table else 0
+            out.append(Event("axisymmetry_loss", int(step[j]), float(dv[j]), None,
+                             f"{shape[j - 1] if j else 'start'} -> {shape[j]} with "
+                             f"{corners} corners"))
+        j = _first_persistent(shape == "wrinkled", i, PERSISTENCE)
+        if j is not None:
+            W = int(table["W"].iloc[j]) if "W" in table else 0
+            out.append(Event("wrinkles", int(step[j]), float(dv[j]), None,
+                             f"{shape[j - 1] if j else 'start'} -> wrinkled with W = {W}"))
+    if "inertia" in table.columns:
+        inertia = table["inertia"].to_numpy(dtype=float)
+        for k in range(1, len(table)):
+            a, b = inertia[k - 1], inertia[k]
+            if a >= 0 and b >= 0 and a != b:
+                out.append(Event("inertia_change", int(step[k]), float(dv[k]), None,
+                                 f"negative Hessian eigenvalues {int(a)} -> {int(b)}"))
+    out.sort(key=lambda e: (e.step, EVENT_NAMES.index(e.name)))
+    return out
+
+
+def thresholds(run_or_path, table=None) -> dict:
+    """``{"primary_buckling": dV/V, "axisymmetry_loss": dV/V, "wrinkles": dV/V}`` of a run, NaN
+    for an event that did not happen (the inputs of the paper's Fig. 10)."""
+    found = {e.name: e.dV_over_V for e in events(run_or_path, table)
+             if e.name != "inertia_change"}
+    return {name: found.get(name, math.nan) for name in EVENT_NAMES[:3]}

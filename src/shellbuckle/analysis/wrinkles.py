@@ -1,0 +1,313 @@
+"""The rim of a dent as a curve: extraction, Fourier spectrum, apices, concavity, wrinkles W.
+
+Rim
+---
+In the dent frame (origin ``o`` on the axis, unit axis ``u`` pointing out of the dent, see
+:mod:`.descriptors`), let ``rhohat_i`` be the unit vector from the axis to vertex ``i``
+(perpendicular to ``u``) and ``n_i`` the vertex normal. The dent's wall faces the axis,
+``n . rhohat < 0``; the outer shell faces away from it, ``n . rhohat > 0``. The *bowl* is the
+connected region of vertices with ``n . rhohat < 0`` that contains the dent, and the *rim* is
+its outer boundary: the crest line where the normal's radial tilt changes sign, i.e. the
+highest points of the shell along the axis, which is where the inverted cap of mirror
+buckling meets the rest of the sphere. The zero crossing of ``n . rhohat`` is interpolated
+linearly on every edge leaving the bowl; the crossings of each face form a segment, and the
+segments, projected on the plane normal to ``u``, are cut by ``RIM_SAMPLES`` rays from the
+axis at azimuths ``phi_k = 2 pi k / K``. The outermost cut of each ray gives the rim radius
+``rho(phi_k)`` and height ``z(phi_k)``. The frame is then refined twice: ``u`` becomes the unit
+vector area ``sum A_i n_i`` of the bowl (the normal of the rim's plane, by Stokes) and ``o`` is
+moved to the centroid of the area enclosed by the projected rim. If some ray misses the rim
+(the bowl does not surround the axis), there is no rim.
+
+Spectrum
+--------
+``rho(phi) = c_0 + sum_m (a_m cos m phi + b_m sin m phi)``; ``spectrum[m - 1] =
+sqrt(a_m^2 + b_m^2) / c_0`` for ``m = 1 .. N_MODES``: a rim ``r0 (1 + eps cos(m phi))`` has
+``spectrum[m - 1] = eps``. The amplitudes do not depend on where ``phi = 0`` is, so they are
+invariant to rotations of the shell. ``m = 1`` measures an off-centre frame and is not used
+for axisymmetry.
+
+Apices, concavity and W
+-----------------------
+``rho`` is smoothed with a periodic Gaussian of standard deviation ``ell`` in arc length
+(``ell / rim_radius`` in azimuth, applied to the Fourier coefficients), with
+``ell = max(RIM_SMOOTHING_LENGTH R_area, RIM_SMOOTHING_EDGES h)`` (``h`` the mean edge length):
+a physical length, raised to the mesh resolution on coarse meshes, where shorter details are
+discretization noise. *Apices* are the local maxima of the smoothed ``rho`` whose topographic
+prominence is at least ``APEX_PROMINENCE`` times the rim radius. The signed curvature of the
+smoothed planar rim curve, ``kappa = (rho^2 + 2 rho'^2 - rho rho'') / (rho^2 + rho'^2)^(3/2)``
+(derivatives in ``phi``, computed exactly from the smoothed Fourier series), is made
+dimensionless as ``kappa * rim_radius`` (1 on a circle, 0 on a straight side of a polygon). The
+arc between two successive apices is *concave* when its smallest ``kappa * rim_radius`` is below
+``-CONCAVITY``: the rim bows towards the axis between the apices, the paper's criterion for
+wrinkles ("the inner part of the rim becomes convex between two successive apices",
+Quilliet et al. 2008, §4.4). The number of wrinkles ``W`` is the number of apices of a rim on
+which at least ``WRINKLED_FRACTION`` of the arcs are concave (:mod:`.classify`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import find_peaks
+
+#: Rays from the axis at which the rim is sampled (uniform in azimuth).
+RIM_SAMPLES = 256
+#: Number of Fourier modes of the rim reported, m = 1 .. N_MODES.
+N_MODES = 20
+#: Smoothing of the rim curve, standard deviation in arc length, in units of R_area ...
+RIM_SMOOTHING_LENGTH = 0.04
+#: ... but at least this many mean edge lengths (below the mesh resolution the rim is noise).
+RIM_SMOOTHING_EDGES = 0.75
+#: An apex is a maximum of the smoothed rim radius with a prominence of at least APEX_PROMINENCE
+#: times the rim radius and at least APEX_RELATIVE times the largest prominence on the rim.
+APEX_PROMINENCE = 0.01
+APEX_RELATIVE = 0.1
+#: Vertex normals are smoothed over max(NORMAL_SMOOTHING_LENGTH R_area, NORMAL_SMOOTHING_EDGES h)
+#: before the crest is located (screened-Poisson smoothing, :meth:`Geometry.smooth`).
+NORMAL_SMOOTHING_LENGTH = 0.02
+NORMAL_SMOOTHING_EDGES = 0.5
+#: The window of an arc in which its mean curvature is measured: this fraction of the arc,
+#: centred on the arc's innermost point.
+ARC_WINDOW = 0.5
+#: An arc between apices is concave when its mean curvature in the window, times the rim
+#: radius, is below -CONCAVITY.
+CONCAVITY = 0.25
+#: Refinements of the dent frame (axis from the bowl's vector area, origin at the rim centroid).
+FRAME_ITERATIONS = 2
+
+
+@dataclass(frozen=True, eq=False)
+class Rim:
+    """Rim of a dent (module docstring).
+
+    Frame: ``origin (3,)``, unit ``axis (3,)`` out of the dent, ``e1``, ``e2`` completing a
+    right-handed basis (``phi`` measured from ``e1`` towards ``e2``). Curve: ``phi (K,)``,
+    ``rho (K,)``, ``z (K,)``. ``bowl (V,)`` bool: the vertices of the bowl. Analysis:
+    ``smoothing_length``, ``rho_smooth (K,)``, ``curvature (K,)`` (``kappa * radius``),
+    ``spectrum (N_MODES,)``, ``apices (n,)`` indices into ``phi``, ``prominences (n,)`` (relative
+    to the radius), ``arc_min_curvature (n,)``: smallest ``kappa * radius`` on the arc from apex
+    ``j`` to apex ``j + 1`` (cyclically).
+    """
+
+    origin: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    phi: np.ndarray
+    rho: np.ndarray
+    z: np.ndarray
+    bowl: np.ndarray
+    smoothing_length: float
+    rho_smooth: np.ndarray
+    curvature: np.ndarray
+    spectrum: np.ndarray
+    apices: np.ndarray
+    prominences: np.ndarray
+    arc_curvature: np.ndarray
+
+    @property
+    def radius(self) -> float:
+        return float(self.rho.mean())
+
+    @property
+    def height(self) -> float:
+        return float(self.z.mean())
+
+    @property
+    def n_apices(self) -> int:
+        return int(len(self.apices))
+
+    @property
+    def n_concave(self) -> int:
+        return int((self.arc_curvature < -CONCAVITY).sum())
+
+    @property
+    def dominant_mode(self) -> int:
+        """The mode ``m >= 2`` of largest amplitude."""
+        return int(np.argmax(self.spectrum[1:]) + 2)
+
+    @property
+    def dominant_amplitude(self) -> float:
+        return float(self.spectrum[1:].max())
+
+
+def _basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.zeros(3)
+    a[int(np.argmin(np.abs(u)))] = 1.0
+    e1 = np.cross(u, a)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(u, e1)
+
+
+def _unit(v):
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def _envelope(A2, B2, zA, zB, phi):
+    """Outermost cut of the segments ``A2 -> B2`` (``(S, 2)``, heights ``zA``, ``zB``) by rays
+    from the origin at azimuths ``phi (K,)``: radii and heights ``(K,)``, NaN where none."""
+    d = np.stack([np.cos(phi), np.sin(phi)], axis=1)[:, None, :]  # (K, 1, 2)
+    delta = (B2 - A2)[None]
+    den = delta[..., 0] * d[..., 1] - delta[..., 1] * d[..., 0]
+    num = A2[None, :, 0] * d[..., 1] - A2[None, :, 1] * d[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -num / den
+        r = ((A2[None] + t[..., None] * delta) * d).sum(axis=-1)
+    valid = (den != 0) & (t >= 0) & (t <= 1) & (r > 0)
+    r = np.where(valid, r, -np.inf)
+    k = np.argmax(r, axis=1)
+    rows = np.arange(len(phi))
+    rho = r[rows, k]
+    tk = t[rows, k]
+    z = zA[k] + tk * (zB[k] - zA[k])
+    missing = ~np.isfinite(rho)
+    rho[missing] = np.nan
+    z[missing] = np.nan
+    return rho, z
+
+
+def _crossings(geom, topology, bowl, n_rho):
+    """Rim segments: for every face leaving the bowl, the two interpolated zero crossings of
+    ``n . rhohat`` on its edges that leave the bowl. Returns ``(S, 2, 3)`` end points."""
+    e = topology.edges
+    boundary = bowl[e[:, 0]] != bowl[e[:, 1]]
+    inner = np.where(bowl[e[:, 0]], e[:, 0], e[:, 1])
+    outer = np.where(bowl[e[:, 0]], e[:, 1], e[:, 0])
+    a, b = n_rho[inner], n_rho[outer]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip(np.where(b - a > 0, -a / (b - a), 0.0), 0.0, 1.0)
+    X = geom.X
+    points = X[inner] + t[:, None] * (X[outer] - X[inner])
+    fe = topology.face_edges
+    hit = boundary[fe]
+    faces = np.flatnonzero(hit.sum(axis=1) == 2)
+    pick = np.sort(np.where(hit[faces], fe[faces], -1), axis=1)[:, 1:]  # the two boundary edges
+    return points[pick]
+
+
+def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
+    """Rim of ``dent`` (:class:`shellbuckle.analysis.descriptors.Dent`) on the conformation
+    ``geom``, or ``None`` if the bowl does not surround the dent's axis. ``components(mask)``
+    labels connected vertex sets (:meth:`ShapeAnalyzer.components`)."""
+    X = geom.X
+    in_dent = np.zeros(len(X), dtype=bool)
+    in_dent[dent.vertices] = True
+    u, o = dent.axis, dent.centre.copy()
+    n_length = max(NORMAL_SMOOTHING_LENGTH * geom.R_area, NORMAL_SMOOTHING_EDGES * geom.mean_edge)
+    normal = geom.smooth(geom.vertex_normal, n_length)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    phi = 2.0 * np.pi * np.arange(samples) / samples
+    for it in range(FRAME_ITERATIONS + 1):
+        e1, e2 = _basis(u)
+        rel = X - o
+        z = rel @ u
+        P = rel - z[:, None] * u
+        rho = np.linalg.norm(P, axis=1)
+        rhat = np.divide(P, rho[:, None], out=np.zeros_like(P), where=rho[:, None] > 0)
+        n_rho = (normal * rhat).sum(axis=1)
+        labels = components(n_rho < 0.0)
+        hit = np.unique(labels[in_dent & (labels >= 0)])
+        bowl = np.isin(labels, hit) & (labels >= 0) | in_dent
+        seg = _crossings(geom, topology, bowl, n_rho)
+        if len(seg) == 0:
+            return None
+        rel_seg = seg - o
+        A2 = np.stack([rel_seg[:, 0] @ e1, rel_seg[:, 0] @ e2], axis=1)
+        B2 = np.stack([rel_seg[:, 1] @ e1, rel_seg[:, 1] @ e2], axis=1)
+        r, zr = _envelope(A2, B2, rel_seg[:, 0] @ u, rel_seg[:, 1] @ u, phi)
+        if not np.isfinite(r).all():
+            return None
+        if it == FRAME_ITERATIONS:
+            break
+        # refine: axis normal to the rim's plane, origin at the projected rim's area centroid
+        x, y = r * np.cos(phi), r * np.sin(phi)
+        xn, yn = np.roll(x, -1), np.roll(y, -1)
+        cross = x * yn - xn * y
+        area2 = cross.sum()
+        cx, cy = ((x + xn) * cross).sum() / (3 * area2), ((y + yn) * cross).sum() / (3 * area2)
+        o = o + cx * e1 + cy * e2
+        w = geom.vertex_area[bowl]
+        u = _unit((w[:, None] * normal[bowl]).sum(axis=0))
+    length = max(RIM_SMOOTHING_LENGTH * geom.R_area, RIM_SMOOTHING_EDGES * geom.mean_edge)
+    return _analysed(o, u, e1, e2, phi, r, zr, bowl, length)
+
+
+def _analysed(o, u, e1, e2, phi, rho, z, bowl, length) -> Rim:
+    shape = rim_shape(rho, length)
+    return Rim(origin=o, axis=u, e1=e1, e2=e2, phi=phi, rho=rho, z=z, bowl=bowl,
+               smoothing_length=float(length), **shape)
+
+
+def rim_shape(rho, smoothing_length: float) -> dict:
+    """Spectrum, smoothed curve, curvature, apices and arc concavity of a rim ``rho (K,)``
+    sampled uniformly in azimuth (module docstring). ``smoothing_length`` in the units of
+    ``rho``. Returns a dict with ``rho_smooth``, ``curvature``, ``spectrum``, ``apices``,
+    ``prominences``, ``arc_min_curvature``."""
+    rho = np.asarray(rho, dtype=np.float64)
+    K = len(rho)
+    c = np.fft.rfft(rho) / K
+    c0 = c[0].real
+    spectrum = 2.0 * np.abs(c[1:N_MODES + 1]) / c0
+    m = np.arange(len(c))
+    sigma = smoothing_length / c0
+    cs = c * np.exp(-0.5 * (m * sigma) ** 2)
+    r = np.fft.irfft(cs * K, n=K)
+    r1 = np.fft.irfft(1j * m * cs * K, n=K)
+    r2 = np.fft.irfft(-(m ** 2) * cs * K, n=K)
+    kappa = (r * r + 2 * r1 * r1 - r * r2) / (r * r + r1 * r1) ** 1.5 * c0
+    apices, prominences = _periodic_peaks(r, APEX_PROMINENCE * c0)
+    if len(apices):
+        keep = prominences >= APEX_RELATIVE * prominences.max()
+        apices, prominences = apices[keep], prominences[keep]
+    # tangent angle psi = phi + beta, beta = angle from the radial direction to the tangent
+    psi = np.unwrap(2.0 * np.pi * np.arange(K) / K + np.arctan2(r, r1))
+    ds = np.sqrt(r * r + r1 * r1) * (2.0 * np.pi / K)
+    arcs = np.zeros(len(apices) if len(apices) >= 2 else 0)
+    for j in range(len(arcs)):
+        idx = _arc(apices[j], apices[(j + 1) % len(apices)], K)
+        centre = int(np.argmin(r[idx]))
+        half = max(1, int(round(0.5 * ARC_WINDOW * (len(idx) - 1))))
+        lo, hi = centre - half, centre + half
+        window = np.arange(idx[0] + lo, idx[0] + hi + 1)
+        turn = (psi[window[-1] % K] - psi[window[0] % K]
+                + 2.0 * np.pi * ((window[-1] // K) - (window[0] // K)))
+        arcs[j] = turn / ds[window[:-1] % K].sum() * c0
+    return dict(rho_smooth=r, curvature=kappa, spectrum=spectrum, apices=apices,
+                prominences=prominences / c0, arc_curvature=arcs)
+
+
+def _arc(i: int, j: int, K: int) -> np.ndarray:
+    """Sample indices from ``i`` to ``j`` going forward cyclically (both included)."""
+    return np.arange(i, i + ((j - i) % K or K) + 1) % K
+
+
+def _periodic_peaks(r: np.ndarray, prominence: float):
+    """Maxima of a periodic signal with topographic prominence >= ``prominence``: indices
+    (sorted) and prominences. The signal is rotated to start at its global minimum, where no
+    peak can be, so the prominence of every peak is the periodic one."""
+    K = len(r)
+    start = int(np.argmin(r))
+    rolled = np.concatenate([np.roll(r, -start), [r[start]]])
+    peaks, props = find_peaks(rolled, prominence=prominence)
+    idx = (peaks + start) % K
+    order = np.argsort(idx)
+    return idx[order], props["prominences"][order]
+
+
+def rim_summary(rim: Rim | None) -> dict:
+    """Flat JSON-able rim descriptors (NaN/None without a rim)."""
+    if rim is None:
+        return {"rim_radius": math.nan, "rim_height": math.nan, "rim_spectrum": None,
+                "rim_dominant_mode": None, "rim_dominant_amplitude": math.nan,
+                "rim_apices": 0, "rim_concave_arcs": 0, "rim_min_curvature": math.nan,
+                "rim_smoothing_length": math.nan}
+    return {"rim_radius": rim.radius, "rim_height": rim.height,
+            "rim_spectrum": [float(v) for v in rim.spectrum],
+            "rim_dominant_mode": rim.dominant_mode,
+            "rim_dominant_amplitude": rim.dominant_amplitude,
+            "rim_apices": rim.n_apices, "rim_concave_arcs": rim.n_concave,
+            "rim_min_curvature": float(rim.curvature.min()),
+            "rim_smoothing_length": rim.smoothing_length}
