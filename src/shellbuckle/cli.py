@@ -382,8 +382,140 @@ def _register_export(sub) -> None:
     parser.set_defaults(func=run)
 
 
+def _register_classify(sub) -> None:
+    """``shellbuckle classify FILE [--step K] [--json]``: the class of one conformation."""
+    parser = sub.add_parser(
+        "classify", help="classify one conformation: sphere, dimples, capsule, polygonal, wrinkled",
+        description="Classify the conformation in FILE, a closed triangulated surface in any "
+                    "supported mesh format (.fe/.dmp Surface Evolver, or a meshio format: "
+                    ".vtk .vtu .xdmf .msh .ply .obj .off .stl .mesh .inp), or a step of a run "
+                    "folder (FILE = DIR, with --step K; default the last step). Prints the shape "
+                    "(sphere, dimples, capsule, polygonal, wrinkled, other), the number of "
+                    "dimples, corners and wrinkles W, the dent's depth, sagitta and axis, the "
+                    "rim radius and its strongest Fourier modes. Lengths in the file's units.")
+    parser.add_argument("file", metavar="FILE", help="mesh file, or run folder with --step")
+    parser.add_argument("--step", type=int, metavar="K",
+                        help="step of a run folder (negative counts from the last; default -1)")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object (with all the descriptors)")
+
+    def run(args) -> int:
+        import json
+        from pathlib import Path
+
+        from .analysis import classify
+
+        path = Path(args.file)
+        if path.is_dir():
+            from .run import Run
+
+            found = Run.open(path)
+            steps = found.steps
+            if not steps:
+                raise ValueError(f"run folder {str(path)!r} has no finished step yet")
+            k = -1 if args.step is None else args.step
+            if not -len(steps) <= k < (steps[-1] + 1 if k >= 0 else 0) or (k >= 0 and k not in steps):
+                raise ValueError(f"--step {k} is not a stored step of {path} (steps "
+                                 f"{steps[0]}..{steps[-1]}, or -1 for the last)")
+            step = steps[k] if k < 0 else k
+            X, faces, source = found.positions(step), found.faces, f"{path} step {step}"
+        else:
+            if args.step is not None:
+                raise ValueError("--step applies to a run folder, not to a mesh file")
+            if not path.exists():
+                raise ValueError(f"mesh file {str(path)!r} does not exist")
+            from .mesh.io import read_mesh
+
+            mesh = read_mesh(path)
+            X, faces, source = mesh.X, mesh.faces, str(path)
+        c = classify(X, faces)
+        if args.json:
+            out = {"source": source, **c.as_dict()}
+            print(json.dumps(_json_safe(out)))
+            return 0
+        print(f"{source}: {len(X)} vertices")
+        print(f"  shape       {c.shape}")
+        print(f"  n_dimples   {c.n_dimples}")
+        print(f"  corners     {c.corners}")
+        print(f"  W           {c.W}")
+        if c.dent_axis is not None:
+            axis = ", ".join(f"{v:+.4f}" for v in c.dent_axis)
+            print(f"  dent depth  {c.dent_depth:.6g}   (indentation along the axis; sagitta below "
+                  f"the rim plane {c.dent_sagitta:.6g})")
+            print(f"  dent axis   ({axis})   (unit, pointing out of the dent)")
+        if c.rim_spectrum is not None:
+            top = sorted(range(2, len(c.rim_spectrum) + 1), key=lambda m: -c.rim_spectrum[m - 1])[:3]
+            modes = ", ".join(f"m={m}: {c.rim_spectrum[m - 1]:.4f}" for m in top)
+            print(f"  rim radius  {c.rim_radius:.6g}   (strongest modes {modes}; axisymmetric "
+                  f"below {c.axisymmetry_threshold:.4f})")
+        print(f"  asphericity {c.asphericity:.6g}")
+        if c.contact_distance == c.contact_distance:
+            print(f"  self-contact distance {c.contact_distance:.6g}")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
+def _json_safe(value):
+    """``value`` with non-finite floats replaced by None (strict JSON)."""
+    import math
+
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _register_analyze(sub) -> None:
+    """``shellbuckle analyze DIR [--json] [--quiet]``: classify every step, print the events."""
+    parser = sub.add_parser(
+        "analyze", help="classify every step of a run, store the analysis columns, print events",
+        description="Classify the conformation of every finished step of the run folder DIR "
+                    "and store the analysis columns (shape, n_dimples, corners, W, dent_depth, "
+                    "dent_sagitta, rim_radius, rim_mode, rim_amplitude, concave_arcs, "
+                    "asphericity, contact_distance) in DIR/analysis.json and the table; then "
+                    "print the buckling events: primary buckling, loss of axisymmetry, "
+                    "wrinkles and changes of the Hessian inertia, with dV/V. Works on a run "
+                    "that is still being computed.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("--json", action="store_true",
+                        help="print the events as one JSON object instead of text")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    def run(args) -> int:
+        import json
+
+        from .analysis import analyze_run, events
+        from .run import Run
+
+        found = Run.open(args.dir)
+        if not found.steps:
+            raise ValueError(f"run folder {args.dir!r} has no finished step yet")
+        table = analyze_run(found, progress=not args.quiet)
+        found_events = events(found, table=table)
+        if args.json:
+            print(json.dumps(_json_safe({"run": str(found.path), "steps": len(table),
+                                         "events": [vars(e) for e in found_events]})))
+            return 0
+        print(f"{found.path}: {len(table)} steps analysed, up to dV/V = "
+              f"{table['dV_over_V'].iloc[-1]:.4f}")
+        counts = table["shape"].value_counts()
+        print("  shapes: " + ", ".join(f"{name} {n}" for name, n in counts.items()))
+        if not found_events:
+            print("  no event (the shell stayed a sphere)")
+        for e in found_events:
+            note = "" if e.confirmed is None else ("  [confirmed]" if e.confirmed else "  [unconfirmed]")
+            print(f"  {e.name:<17} step {e.step:>4}  dV/V = {e.dV_over_V:.4f}  {e.description}{note}")
+        return 0
+
+    parser.set_defaults(func=run)
+
+
 # Each entry adds one sub-command: register(subparsers) -> sets ``func`` via set_defaults.
-_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy, _register_view, _register_export]
+_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy, _register_view, _register_export, _register_classify, _register_analyze]
 
 
 def main(argv=None) -> int:
