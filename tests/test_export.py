@@ -15,7 +15,7 @@ from shellbuckle.export import FORMATS, export_step
 from shellbuckle.mesh import icosphere
 from shellbuckle.mesh.evolver_io import read_evolver
 from shellbuckle.mesh.io import read_mesh
-from shellbuckle.run import deflate
+from shellbuckle.run import deflate, params_for_mesh, shell_from_file
 
 GAMMA = 271.0
 NU = 1.0 / 3.0
@@ -149,6 +149,20 @@ def test_fe_carries_the_run_parameters_and_the_initial_sphere_as_rest_state(runs
     t = X0[run.faces[:, 2]] - X0[run.faces[:, 0]]
     expected = np.stack([(s * s).sum(1), (s * t).sum(1), (t * t).sum(1)], axis=1)
     np.testing.assert_allclose(evf.form_factors, expected, rtol=1e-15, atol=0)
+
+
+def test_a_run_started_from_an_exported_fe_continues_with_the_same_energy(runs, tmp_path):
+    parent = runs["evolver"]
+    step = parent.steps[-1]
+    mesh, found = shell_from_file(export_step(parent, step, tmp_path / "last.fe"))
+    params = params_for_mesh(mesh, found)
+    assert found["A"] == GAMMA and found["nu"] == NU and found["kappa"] == 1.0
+    child = deflate(mesh, params, schedule=[0.05], bending="evolver", c0=found["c0"],
+                    form_factors=found["form_factors"], out=tmp_path / "child")
+    start, row = _row(child, 0), _row(parent, step)
+    assert start["E_stretch"] == pytest.approx(row["E_stretch"], rel=1e-10)
+    assert start["E_bend"] == pytest.approx(row["E_bend"], rel=1e-10)
+    assert len(child.steps) == 2  # and it deflates on from there
 
 
 @pytest.mark.skipif(shutil.which("evolver") is None,
