@@ -121,3 +121,17 @@ def test_c0_cycle_turns_a_potato_into_a_capsule():
     assert n_capsule == 1
     assert n_potato >= 3
     assert E_potato / E_capsule > 1.5
+
+
+def test_pressure_control_follows_the_shrunk_sphere_pressure_volume_law():
+    mesh = icosphere(6)
+    params = ShellParameters.from_gamma(2333.0, nu=1 / 3)
+    p_c = theory.classical_threshold(params).pressure
+    protocol = Protocol(schedule=(0.1 * p_c, 0.2 * p_c, 0.3 * p_c), control="pressure",
+                        jiggle=0.01, seed=2)
+    _, _, records = _run(mesh, params, protocol)
+    for r in records:
+        assert r["pressure"] == r["target_pressure"]
+        assert theory.pressure_sphere_exact(r["dV_over_V"], params) == pytest.approx(
+            r["pressure"], rel=0.02)
+        assert r["inertia"] == 0

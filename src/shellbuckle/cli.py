@@ -218,6 +218,9 @@ def _register_deflate(sub) -> None:
                        help="last target dV/V (default 0.95; the run stops earlier at self-contact)")
     proto.add_argument("--schedule", type=str,
                        help="comma-separated list of target dV/V values instead of --dv/--until")
+    proto.add_argument("--pressures", type=str,
+                       help="pressure control: comma-separated external overpressures "
+                            "(units kappa/R^3), one per step, instead of a volume schedule")
     proto.add_argument("--no-c0-cycle", action="store_true",
                        help="skip the zero-spontaneous-curvature cycle (gives 'potato' shapes)")
     proto.add_argument("--jiggle", type=float, default=0.01,
@@ -249,10 +252,20 @@ def _cmd_deflate(args) -> int:
             schedule = [float(x) for x in args.schedule.split(",") if x.strip()]
         except ValueError:
             raise ValueError(f"--schedule must be comma-separated numbers, got {args.schedule!r}") from None
+    pressures = None
+    if args.pressures:
+        if schedule is not None:
+            raise ValueError("give either --schedule or --pressures, not both")
+        try:
+            pressures = [float(x) for x in args.pressures.split(",") if x.strip()]
+        except ValueError:
+            raise ValueError(f"--pressures must be comma-separated numbers, got {args.pressures!r}") from None
     # refuse bad protocol options before any mesh is built
     options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
                    bending=args.bending, method=args.method, c0=args.c0)
-    if schedule is None:
+    if pressures is not None:
+        Protocol(schedule=tuple(pressures), control="pressure", **options)
+    elif schedule is None:
         Protocol.paper(dv=args.dv, until=args.until, **options)
     else:
         Protocol(schedule=tuple(schedule), **options)
@@ -274,7 +287,8 @@ def _cmd_deflate(args) -> int:
     run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
                   bending=args.bending, method=args.method, c0=c0, out=args.out,
-                  progress=not args.quiet, form_factors=from_file.get("form_factors"))
+                  progress=not args.quiet, form_factors=from_file.get("form_factors"),
+                  pressures=pressures)
     return _report_run(run, plot=not args.no_plot)
 
 

@@ -91,7 +91,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             stop_at_contact: bool = True, c0: float | None = None, out=None,
             progress: bool = False, max_steps: int | None = None,
-            form_factors=None) -> Run:
+            form_factors=None, pressures=None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
@@ -99,6 +99,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
+    ``pressures`` (a list of external overpressures, units kappa/R^3) switches to pressure
+    control: each step minimizes ``E + p V`` at free volume.
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
     instead of the initial mesh.
     """
@@ -108,7 +110,11 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, seed=seed, bending=bending,
                    method=method, tol=tol, stop_at_contact=stop_at_contact)
-    if schedule is None:
+    if pressures is not None:
+        if schedule is not None:
+            raise ValueError("give either a volume schedule or pressures, not both")
+        protocol = Protocol(schedule=tuple(np.atleast_1d(pressures)), control="pressure", **options)
+    elif schedule is None:
         protocol = Protocol.paper(dv=dv, until=until, **options)
     else:
         protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)

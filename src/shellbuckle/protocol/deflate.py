@@ -32,12 +32,14 @@ from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..solve import minimize
 from ..solve.linear import make_solver
+from ..solve.pressure import minimize_at_pressure
 from .jiggle import jiggle, step_rng
 from .schedule import PAPER_DV, check_schedule, linear_schedule
 
 log = logging.getLogger(__name__)
 
 METHODS = ("newton", "alternate", "cg", "gd")
+CONTROLS = ("volume", "pressure")
 
 DEFAULT_JIGGLE = 0.01
 """Default jiggle: Gaussian displacements of 1 % of the mean edge length per coordinate."""
@@ -47,7 +49,9 @@ DEFAULT_JIGGLE = 0.01
 class Protocol:
     """How a run moves through volume and minimizes; stored with the run.
 
-    ``schedule``: target dV/V of steps 1, 2, ... (dV/V = 1 - V/V0, V0 the initial volume).
+    ``schedule``: target dV/V of steps 1, 2, ... (dV/V = 1 - V/V0, V0 the initial volume), or,
+    with ``control = "pressure"``, the external overpressure p of each step (units kappa/R^3;
+    positive compresses): the shell then minimizes ``E + p V`` at free volume.
     ``c0``: spontaneous curvature (c = c1 + c2), None for the stress-free ``2/R``.
     ``c0_cycle``: the paper's zero-curvature cycle at each step. ``jiggle``: amplitude as a
     fraction of the mean edge length. ``method``: minimizer (``newton``, ``alternate`` = CG
@@ -65,9 +69,19 @@ class Protocol:
     stop_at_contact: bool = True
     tol: float = 1e-9
     max_iter: int = 200
+    control: str = "volume"
 
     def __post_init__(self):
-        object.__setattr__(self, "schedule", tuple(float(x) for x in check_schedule(self.schedule)))
+        if self.control not in CONTROLS:
+            raise ValueError(f"control must be one of {', '.join(CONTROLS)}, got {self.control!r}")
+        if self.control == "volume":
+            schedule = check_schedule(self.schedule)
+        else:
+            schedule = np.atleast_1d(np.asarray(self.schedule, dtype=float))
+            if schedule.ndim != 1 or len(schedule) == 0 or not np.isfinite(schedule).all():
+                raise ValueError(f"a pressure schedule must be a non-empty list of finite "
+                                 f"pressures, got {list(np.ravel(self.schedule))!r}")
+        object.__setattr__(self, "schedule", tuple(float(x) for x in schedule))
         if self.bending not in BENDING_KINDS:
             raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {self.bending!r}")
         if self.method not in METHODS:
@@ -162,8 +176,11 @@ def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before
     }
 
 
-def _minimize(ctx: Context, energy, X, V_target):
+def _minimize(ctx: Context, energy, X, V_target, pressure=None):
     p = ctx.protocol
+    if pressure is not None:
+        return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
+                                    max_iter=p.max_iter, solver=ctx.solver)
     options = {"solver": ctx.solver} if p.method in ("newton", "alternate") else {}
     return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
                     max_iter=p.max_iter, **options)
@@ -176,21 +193,26 @@ def step(ctx: Context, state: State):
     if k > len(p.schedule):
         raise ValueError(f"the schedule has {len(p.schedule)} steps; step {k} does not exist")
     t0 = time.perf_counter()
-    target = p.schedule[k - 1]
-    V_target = ctx.V0 * (1.0 - target)
+    if p.control == "pressure":
+        target, V_target, pressure = float("nan"), None, p.schedule[k - 1]
+    else:
+        target, pressure = p.schedule[k - 1], None
+        V_target = ctx.V0 * (1.0 - target)
     X = jiggle(state.X, ctx.mesh.topology.edges, p.jiggle, step_rng(p.seed, k))
-    result = _minimize(ctx, ctx.energy, X, V_target)
+    result = _minimize(ctx, ctx.energy, X, V_target, pressure)
     iterations = result.nit
     E_before = result.fun
     if p.c0_cycle:
-        flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target)
-        result = _minimize(ctx, ctx.energy, flat.x, V_target)
+        flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure)
+        result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure)
         iterations += flat.nit + result.nit
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
                      wall_s=time.perf_counter() - t0)
     record["step"] = k
+    if pressure is not None:
+        record["target_pressure"] = float(pressure)
     stopped = None
     if p.stop_at_contact and record["self_intersecting"]:
         stopped = f"self-intersection at step {k} (dV/V = {record['dV_over_V']:.4f})"
