@@ -292,11 +292,12 @@ class _KeySet:
     _MULT = np.uint64(0x9E3779B97F4A7C15)
 
     def __init__(self, keys: np.ndarray):
-        keys = np.unique(np.asarray(keys, dtype=np.int64))
+        keys = np.sort(np.asarray(keys, dtype=np.int64).ravel())
+        keys = keys[np.r_[True, keys[1:] != keys[:-1]]] if len(keys) else keys
         bits = max(4, int(np.ceil(np.log2(2 * max(len(keys), 1)))))
         self._shift = np.uint64(64 - bits)
         home = self._slot(keys)
-        order = np.argsort(home, kind="stable")
+        order = np.argsort(home)
         rank = np.arange(len(keys))
         place = rank + np.maximum.accumulate(home[order] - rank) if len(keys) else rank
         size = max(1 << bits, int(place.max(initial=0)) + 2)  # a trailing empty slot ends scans
@@ -385,16 +386,11 @@ class ContactChecker:
         self.ring_sizes = np.diff(ring.indptr)  # (V,) vertices within `rings` edges, self included
         ring = sp.triu(ring, k=1).tocoo()
         self._ring = _KeySet(ring.row.astype(np.int64) * V + ring.col)
-        # faces sharing a vertex: all pairs within each vertex star
-        ptr, vf = topology.vertex_faces_ptr, topology.vertex_faces
-        m = np.diff(ptr)
-        owner = np.repeat(np.arange(V), m * m)
-        start = np.repeat(ptr[:-1], m * m)
-        local = np.arange(len(owner)) - np.repeat(np.cumsum(m * m) - m * m, m * m)
-        fa, fb = vf[start + local // np.repeat(m, m * m)], vf[start + local % np.repeat(m, m * m)]
-        keep = fa < fb
-        self._sharing = _KeySet(fa[keep].astype(np.int64) * F + fb[keep])
-        del owner
+        # faces sharing a vertex: the pattern of M M^T, M the (F, V) face-vertex incidence
+        incidence = sp.csr_matrix((np.ones(3 * F, dtype=np.int32), topology.faces.ravel(),
+                                   np.arange(0, 3 * F + 1, 3)), shape=(F, V))
+        sharing = sp.triu(incidence @ incidence.T, k=1).tocoo()
+        self._sharing = _KeySet(sharing.row.astype(np.int64) * F + sharing.col)
 
     # -- helpers -------------------------------------------------------------------------------
 
@@ -573,21 +569,21 @@ class ContactChecker:
     @staticmethod
     def _centroid_pairs(centroids, rho):
         """Face pairs ``(f, g)``, ``f < g``, that may satisfy ``|c_f - c_g| <= rho_f + rho_g``
-        (a superset; duplicates possible). One ``query_pairs`` at ``2 rho_q``, plus ball queries
-        of radius ``rho_f + max rho`` around the faces with ``rho_f > rho_q``, so that a few
-        large faces do not inflate the radius for all. ``rho_q`` is the 99th percentile of
-        ``rho``, kept within [1.2, 2] times the median."""
+        (a superset; duplicates possible). With ``rho_q`` = min(max rho, 1.2 median rho): one
+        ``query_pairs`` at ``2 rho_q`` over all faces; the faces with ``rho_f > rho_q`` against
+        all faces within ``max rho + rho_q``; those faces among themselves within ``2 max rho``.
+        A few large faces thus do not inflate the search radius for all."""
         rho_max = float(rho.max())
-        median, p99 = np.percentile(rho, [50, 99])
-        rho_q = min(rho_max, min(max(p99, 1.2 * median), 2.0 * median))
+        rho_q = min(rho_max, 1.2 * float(np.median(rho)))
         tree = cKDTree(centroids, balanced_tree=False, compact_nodes=False)
         cand = tree.query_pairs(2.0 * rho_q, output_type="ndarray").astype(np.int64, copy=False)
         big = np.flatnonzero(rho > rho_q)
         if len(big):
-            balls = tree.query_ball_point(centroids[big], rho[big] + rho_max, return_sorted=False)
-            counts = np.fromiter(map(len, balls), dtype=np.int64, count=len(big))
-            g = np.fromiter(chain.from_iterable(balls), dtype=np.int64, count=int(counts.sum()))
-            f = np.repeat(big, counts)
+            big_tree = cKDTree(centroids[big], balanced_tree=False, compact_nodes=False)
+            near = big_tree.sparse_distance_matrix(tree, rho_max + rho_q, output_type="ndarray")
+            among = big_tree.query_pairs(2.0 * rho_max, output_type="ndarray")
+            f = np.concatenate([big[near["i"]], big[among[:, 0]]])
+            g = np.concatenate([near["j"].astype(np.int64), big[among[:, 1]]])
             extra = np.stack([np.minimum(f, g), np.maximum(f, g)], axis=1)[f != g]
             cand = np.concatenate([cand.reshape(-1, 2), extra])
         return cand
