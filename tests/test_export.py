@@ -1,8 +1,5 @@
 """Exports of a stored step (shellbuckle.export): mesh formats, data fields, Surface Evolver."""
 
-import re
-import shutil
-import subprocess
 
 import meshio
 import numpy as np
@@ -165,36 +162,6 @@ def test_a_run_started_from_an_exported_fe_continues_with_the_same_energy(runs, 
     assert len(child.steps) == 2  # and it deflates on from there
 
 
-@pytest.mark.skipif(shutil.which("evolver") is None,
-                    reason="Surface Evolver (`evolver`, Debian package evolver-nox) is not installed")
-def test_surface_evolver_loads_the_fe_and_continues_from_it(runs, tmp_path):
-    run = runs["evolver"]
-    step = run.steps[-1]
-    path = export_step(run, step, tmp_path / "last.fe")
-    printing = ('printf "SBX E_stretch %.17g\\n", stretching.value\n'
-                'printf "SBX E_bend %.17g\\n", bending.value\n'
-                'printf "SBX volume %.17g\\n", body[1].volume\n')
-    (tmp_path / "print.cmd").write_text(printing)
-    (tmp_path / "go.cmd").write_text('read "print.cmd"\ng 5\nread "print.cmd"\nquit\n')
-    out = subprocess.run(["evolver", "-x", "-f", "go.cmd", path.name], cwd=tmp_path,
-                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stdout + out.stderr
-    found = re.findall(r"^SBX (\w+) ([-+0-9.eE]+)\s*$", out.stdout, flags=re.M)
-    assert len(found) == 6, out.stdout
-    before = {k: float(v) for k, v in found[:3]}
-    after = {k: float(v) for k, v in found[3:]}
-    row = _row(run, step)
-    assert before["E_stretch"] == pytest.approx(row["E_stretch"], rel=1e-9)
-    assert before["E_bend"] == pytest.approx(row["E_bend"], rel=1e-9)
-    # the step is a minimum at fixed volume: Evolver's gradient descent under its volume
-    # constraint keeps the volume and cannot lower the energy
-    E0 = before["E_stretch"] + before["E_bend"]
-    E1 = after["E_stretch"] + after["E_bend"]
-    assert E1 == pytest.approx(E0, rel=1e-9)
-    assert after["volume"] == pytest.approx(before["volume"], rel=1e-9)
-
-
-# ------------------------------------------------------------------------------ bad input, CLI
 def test_bad_step_and_format_are_refused_with_what_is_allowed(runs, tmp_path):
     run = runs["juelicher"]
     with pytest.raises(ValueError, match=r"allowed steps: 0\.\.2"):
