@@ -499,3 +499,16 @@ def test_bad_inputs_are_refused():
         cc.intersecting_pairs(m.X, max_pairs=0)
     with pytest.raises(ValueError, match="cutoff"):
         cc.min_face_distance(m.X, cutoff=-1.0)
+
+
+@pytest.mark.parametrize("rings", [0, 1, 2, 3])
+def test_adjacency_sets_match_graph_distances(rings):
+    m = random_sphere(200, seed=2)
+    t = m.topology
+    cc = ContactChecker(t, rings=rings)
+    i, j = np.meshgrid(np.arange(t.n_vertices), np.arange(t.n_vertices), indexing="ij")
+    np.testing.assert_array_equal(cc.adjacent(i, j), graph_distances(t) <= rings)
+    f, g = np.meshgrid(np.arange(t.n_faces), np.arange(t.n_faces), indexing="ij")
+    F = t.faces
+    share = (F[:, None, :, None] == F[None, :, None, :]).any(axis=(2, 3))
+    np.testing.assert_array_equal(cc.share_vertex(f, g), share)
