@@ -6,6 +6,8 @@ and outward oriented.
 - ``inverted_cap``: mirror buckling, the cap ``x . u > R cos(alpha)`` reflected through the
   plane ``x . u = R cos(alpha)``. Rim radius ``R sin(alpha)``, pole displaced by
   ``2 R (1 - cos alpha)``, volume lost ``dV/V = (1 - cos alpha)^2 (2 + cos alpha) / 2``.
+  Only ``alpha <= 90 deg`` is a surface without self-intersection (at 90 deg the image of the
+  pole touches the opposite pole, dV/V = 1).
 - ``modulated_cap``: the rim at azimuth ``phi`` is at ``R sin(alpha(phi))`` with
   ``sin(alpha(phi)) = sin(alpha0) f(phi)`` for a given periodic ``f``; inside, each meridian is
   reflected through the height of its own rim, blended towards ``cos(alpha0)`` at the axis so
@@ -37,7 +39,7 @@ def frame(axis):
 
 
 def inverted_cap(X, alpha, axis=(0.0, 0.0, 1.0)):
-    R = np.linalg.norm(X, axis=1).mean()
+    R = np.linalg.norm(X, axis=1).max()  # the sphere's radius, also after other reflections
     u = np.asarray(axis, float) / np.linalg.norm(axis)
     z = X @ u
     c = R * np.cos(alpha)
@@ -58,7 +60,7 @@ def polygon_profile(m):
 
 
 def modulated_cap(X, alpha0, profile, axis=(0.0, 0.0, 1.0), phase=0.0, blend=2):
-    R = np.linalg.norm(X, axis=1).mean()
+    R = np.linalg.norm(X, axis=1).max()
     e1, e2, u = frame(axis)
     P = X / R
     x, y, z = P @ e1, P @ e2, P @ u
@@ -101,7 +103,7 @@ def volume(X, faces):
 # ---------------------------------------------------------------------- checks of the shapes
 
 @pytest.mark.parametrize("kind", sorted(MESHES))
-@pytest.mark.parametrize("alpha_deg", [30, 60, 100])
+@pytest.mark.parametrize("alpha_deg", [30, 60, 90])
 def test_inverted_cap_loses_the_volume_of_mirror_buckling(kind, alpha_deg):
     m = mesh(kind)
     alpha = np.radians(alpha_deg)

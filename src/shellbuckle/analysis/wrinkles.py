@@ -73,7 +73,7 @@ NORMAL_SMOOTHING_EDGES = 0.5
 ARC_WINDOW = 0.5
 #: An arc between apices is concave when its mean curvature in the window, times the rim
 #: radius, is below -CONCAVITY.
-CONCAVITY = 0.25
+CONCAVITY = 0.1
 #: Refinements of the dent frame (axis from the bowl's vector area, origin at the rim centroid).
 FRAME_ITERATIONS = 2
 
