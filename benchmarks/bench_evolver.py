@@ -1,0 +1,506 @@
+"""Surface Evolver 2.70 and shellbuckle on the same ``.fe`` mesh, moduli, rest state and protocol.
+
+Run from the repository root (Surface Evolver as ``evolver`` on the PATH, Debian/Ubuntu package
+``evolver-nox``, or ``--evolver PATH``):
+
+    python benchmarks/bench_evolver.py --vertices 642 --steps 5
+    python benchmarks/bench_evolver.py --vertices 3594 --steps 12          # across buckling
+    python benchmarks/bench_evolver.py --mesh icosphere --vertices 642 --c0-cycle --steps 3
+    python benchmarks/bench_evolver.py --schedule 0.171 0.19 0.209 0.228   # jump near buckling
+
+What it does:
+
+1. builds the mesh (``random_sphere(N, seed)``, the paper's randomized isotropic sphere, or an
+   icosphere with ``N = 10 n^2 + 2``) and writes it with ``write_evolver``: rest state = the
+   initial sphere (``form_factors``), ``A = gamma kappa / R^2``, ``kappa = 1``, ``c0 = 2/R``
+   (Evolver ``h_zero = 1/R``), Poisson ratio ``nu``;
+2. runs Surface Evolver on that file, non-interactively (``evolver -x -f CMD FILE``, stdin
+   closed). For each step ``k`` it sets ``body[1].target := V0 (1 - dV/V_k)`` and minimizes
+   with the procedure ``relax`` (see ``EVOLVER_RELAX``): one ``g`` step (Lagrange multiplier
+   and projection onto the new volume), then Newton steps with ``hessian_normal off`` (all
+   three degrees of freedom of every vertex, as the stretching energy needs): ``hessian_seek``
+   (Newton direction plus line search) while far from the minimum, plain ``hessian`` once
+   the seek takes full steps, until a Newton step changes the energy by at most ``--etol``
+   relative; at a stationary point with ``eigenneg > 0`` (for example the symmetric branch
+   past buckling) ``saddle`` steps down along the lowest eigenvector and Newton resumes.
+   With ``--c0-cycle``: ``h_zero := 0``, relax, ``h_zero := 1/R``, relax (the paper's
+   cycle). No jiggle. CPU time per step is Evolver's ``clock`` around the step, wall time is
+   ``date`` before and after it;
+3. runs ``shellbuckle.run.deflate`` on the same mesh with ``bending="evolver"`` (the same
+   discrete energy as Evolver's ``star_perp_sq_mean_curvature``), the same schedule,
+   ``jiggle=0``, the same c0-cycle setting, Newton with its default convergence test
+   (relative projected gradient ``--tol``, energy change 1e-10, inertia 0). CPU time per step
+   is the process time between the run's per-step log records (step 1 includes the run's
+   set-up), wall time is the table's ``wall_s``;
+4. checks both final conformations of every step with shellbuckle's energy (total energy,
+   relative projected-gradient residual ``|grad E - lam grad V| / |grad E|``), aligns them
+   (rotation + translation, Kabsch) and reports the largest vertex distance between them,
+   and prints one table side by side plus the CPU and wall-time ratios (Evolver / ours).
+
+Sign convention: shellbuckle reports ``pressure = -dE/dV`` (positive for a deflated shell);
+Evolver's ``body[1].pressure`` is the Lagrange multiplier ``+dE/dV``. The table prints
+``-body[1].pressure`` in the column ``p_SE`` so that both columns use shellbuckle's sign.
+
+Before buckling both codes minimize the same function from the same state, so they reach
+the same minimum (energies to ~1e-10 relative or better, shapes to round-off). Past a
+buckling threshold the minimum each code finds depends on how it leaves the unstable
+symmetric branch, so different local minima are possible; the ``dx`` column shows it.
+
+``--json FILE`` writes everything measured (both sides' per-step records, timings, versions).
+``--keep DIR`` keeps the datafile, the generated command file, Evolver's output and both
+sides' positions in DIR (by default they live in a temporary folder that is removed).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import platform  # noqa: E402
+import re  # noqa: E402
+import resource  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import shellbuckle  # noqa: E402
+from shellbuckle.energies.total import ShellEnergy  # noqa: E402
+from shellbuckle.energies.volume import Volume  # noqa: E402
+from shellbuckle.mesh import icosphere, random_sphere  # noqa: E402
+from shellbuckle.mesh.evolver_io import write_evolver  # noqa: E402
+from shellbuckle.params import ShellParameters  # noqa: E402
+from shellbuckle.run import deflate  # noqa: E402
+from shellbuckle.solve.linesearch import projected_gradient  # noqa: E402
+
+EVOLVER_RELAX = r"""
+// relax(etol, confirm, maxit): minimize the energy at the current target volume.
+// One g step (Lagrange multiplier, projection onto the target volume), then Newton steps on
+// all vertex degrees of freedom (hessian_normal off): hessian_seek (Newton direction plus a
+// line search) far from the minimum; plain hessian once the seek takes (nearly) full steps
+// with a small energy change. Converged after 1 + confirm consecutive plain Newton steps that
+// each change the energy by at most etol relative, with no negative eigenvalue in the
+// factored Hessian (eigenneg = 0). The energy change of a Newton step is blind to a residual
+// gradient of ~1e-7 relative on a stiff shell; the confirming step removes it (quadratic
+// convergence). At a stationary point with eigenneg > 0, saddle moves down along the lowest
+// eigenvector; if that lowers the energy by less than etol relative (a rigid-motion zero mode
+// of the unpinned Hessian), the point is accepted.
+procedure relax(real etol, integer confirm, integer maxit)
+{
+  local e_old, de, polish, e_sad, small;
+  g 1;
+  relax_g := relax_g + 1;
+  polish := 0;
+  small := 0;
+  relax_ok := 0;
+  relax_local := 0;
+  while relax_local < maxit do {
+    e_old := total_energy;
+    if polish then hessian else hessian_seek;
+    relax_newton := relax_newton + 1;
+    relax_local := relax_local + 1;
+    de := e_old - total_energy;
+    if polish then {
+      if abs(de) <= etol*abs(total_energy) then {
+        small := small + 1;
+        if eigenneg == 0 then {
+          if small > confirm then { relax_ok := 1; break };
+        } else {
+          e_sad := total_energy;
+          saddle;
+          relax_saddles := relax_saddles + 1;
+          relax_local := relax_local + 1;
+          small := 0;
+          polish := 0;
+          if e_sad - total_energy <= etol*abs(total_energy) then { relax_ok := 1; break };
+        };
+      } else {
+        small := 0;
+        if de < 0 then polish := 0;
+      };
+    } else {
+      if last_hessian_scale == 0 or abs(de) <= etol*abs(total_energy) then {
+        if eigenneg > 0 then {
+          e_sad := total_energy;
+          saddle;
+          relax_saddles := relax_saddles + 1;
+          relax_local := relax_local + 1;
+          if e_sad - total_energy <= etol*abs(total_energy) then polish := 1;
+        } else polish := 1;
+      } else if last_hessian_scale > 0.9 and abs(de) <= 1e-6*abs(total_energy) then polish := 1;
+    };
+  };
+}
+"""
+
+STEP_FIELDS = ("step", "target", "E_total", "E_stretch", "E_bend", "volume", "body_pressure",
+               "E_before_c0_cycle", "newton", "saddles", "g", "eigenneg", "converged", "cpu_s")
+
+
+def build_mesh(kind: str, n_vertices: int, seed: int):
+    if kind == "icosphere":
+        n = int(round(math.sqrt((n_vertices - 2) / 10.0)))
+        if n < 1 or 10 * n * n + 2 != n_vertices:
+            raise SystemExit(f"--mesh icosphere needs --vertices = 10 n^2 + 2 (12, 42, 92, 162, "
+                             f"252, 362, 492, 642, ...), got {n_vertices}")
+        return icosphere(n)
+    return random_sphere(n_vertices, seed=seed)
+
+
+def rest_form_factors(X: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Evolver's ``form_factors (s11, s12, s22)`` of the rest shape ``X`` in face vertex order."""
+    x = X[faces]
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    return np.stack([(e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)], axis=1)
+
+
+def pin_rigid_motions(fe: Path, X: np.ndarray) -> tuple[int, int, int]:
+    """Remove the six rigid motions from Evolver's problem, as shellbuckle's Newton does.
+
+    With ``hessian_normal off`` Evolver's Hessian is singular along translations and
+    rotations; away from equilibrium the rotational directions come out slightly negative
+    (``Hessian not positive definite. Index: 3``) and at a minimum ``eigenneg`` counts them
+    at random, which makes ``saddle`` chase zero modes. Pinning a gauge does not change the
+    minimum energy (it is invariant under rigid motions): vertex ``a`` is ``fixed``, vertex
+    ``b`` (the farthest from ``a``) moves on the line through ``a`` and ``b`` (constraints 1
+    and 2), vertex ``c`` (the farthest from that line) in the plane through ``a``, ``b``,
+    ``c`` (constraint 2). The planes are ``nonwall`` constraints: the star curvature methods
+    would otherwise treat them as mirror planes (they only act on incomplete stars anyway).
+    Returns the 0-based ``(a, b, c)``.
+    """
+    a = int(np.argmax(X[:, 2]))
+    b = int(np.argmax(np.linalg.norm(X - X[a], axis=1)))
+    u = (X[b] - X[a]) / np.linalg.norm(X[b] - X[a])
+    off = (X - X[a]) - np.outer((X - X[a]) @ u, u)
+    c = int(np.argmax(np.linalg.norm(off, axis=1)))
+    n1 = off[c] / np.linalg.norm(off[c])  # both planes contain the line ab
+    n2 = np.cross(u, n1)                   # this one also contains c
+    text = fe.read_text().splitlines()
+    at = text.index("vertices")
+    decl = []
+    for k, n in enumerate((n1, n2), start=1):
+        decl += [f"constraint {k} nonwall",
+                 f"formula: ({float(n[0])!r})*x + ({float(n[1])!r})*y + ({float(n[2])!r})*z = "
+                 f"{float(n @ X[a])!r}", ""]
+    for v, extra in ((a, " fixed"), (b, " constraint 1 2"), (c, " constraint 2")):
+        line = text[at + 1 + v]
+        if not line.startswith(f"{v + 1} "):
+            raise RuntimeError(f"unexpected vertex line {line!r} in {fe}")
+        text[at + 1 + v] = line + extra
+    fe.write_text("\n".join(text[:at] + decl + text[at:]) + "\n")
+    return a, b, c
+
+
+def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: float,
+                     confirm: int, maxit: int) -> str:
+    """The Evolver command file: the relax procedure and one block per volume step."""
+    lines = ["// Generated by benchmarks/bench_evolver.py",
+             "relax_newton := 0", "relax_saddles := 0", "relax_g := 0", "relax_ok := 0",
+             "relax_local := 0", EVOLVER_RELAX, "quiet on", "hessian_normal off", f"V0 := {V0!r}"]
+    fmt = " ".join(["%d", "%.17g"] + ["%.17g"] * 6 + ["%d"] * 5 + ["%.6f"])
+    for k, target in enumerate(schedule, start=1):
+        lines += [
+            f"// step {k}: dV/V = {target!r}",
+            'system "date +SBX_WALL_START_%s.%N"',
+            "relax_newton := 0", "relax_saddles := 0", "relax_g := 0",
+            "sbx_t0 := clock",
+            f"body[1].target := V0 * (1 - {target!r})",
+            f"relax({etol!r}, {confirm}, {maxit})",
+            "sbx_ok := relax_ok",
+            "sbx_before := total_energy",
+        ]
+        if c0_cycle:
+            lines += ["h_zero := 0", "recalc", f"relax({etol!r}, {confirm}, {maxit})",
+                      "sbx_ok := sbx_ok * relax_ok",
+                      f"h_zero := {h_zero!r}", "recalc", f"relax({etol!r}, {confirm}, {maxit})",
+                      "sbx_ok := sbx_ok * relax_ok"]
+        lines += [
+            "sbx_cpu := clock - sbx_t0",
+            'system "date +SBX_WALL_END_%s.%N"',
+            f'printf "SBX_STEP {fmt}\\n", {k}, {target!r}, total_energy, stretching.value, '
+            "bending.value, body[1].volume, body[1].pressure, sbx_before, relax_newton, "
+            "relax_saddles, relax_g, eigenneg, sbx_ok, sbx_cpu",
+            f'{{ foreach vertex do printf "%d %.17g %.17g %.17g\\n", id, x, y, z }} >>> '
+            f'"evolver_step{k}.txt"',
+        ]
+    lines += ["quit", ""]
+    return "\n".join(lines)
+
+
+def run_evolver(evolver: str, workdir: Path, fe: Path, cmd: Path, timeout: float) -> dict:
+    """Run Evolver, parse its per-step lines; positions are read from the files it wrote."""
+    log_path = workdir / "evolver.log"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    with open(log_path, "w") as log_file:
+        proc = subprocess.run([evolver, "-x", "-f", cmd.name, fe.name], cwd=workdir,
+                              stdin=subprocess.DEVNULL, stdout=log_file,
+                              stderr=subprocess.STDOUT, timeout=timeout)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    text = log_path.read_text(errors="replace")
+    steps, starts, ends = [], [], []
+    for line in text.splitlines():
+        if line.startswith("SBX_STEP "):
+            values = line.split()[1:]
+            steps.append({name: (int(v) if name in ("step", "newton", "saddles", "g", "eigenneg",
+                                                     "converged") else float(v))
+                          for name, v in zip(STEP_FIELDS, values)})
+        elif line.startswith("SBX_WALL_START_"):
+            starts.append(float(line[len("SBX_WALL_START_"):]))
+        elif line.startswith("SBX_WALL_END_"):
+            ends.append(float(line[len("SBX_WALL_END_"):]))
+    if proc.returncode != 0 or not steps:
+        tail = "\n".join(text.splitlines()[-30:])
+        raise RuntimeError(f"Surface Evolver exited with code {proc.returncode} after "
+                           f"{len(steps)} steps; last output:\n{tail}")
+    for rec, t_start, t_end in zip(steps, starts, ends):
+        rec["wall_s"] = t_end - t_start
+        data = np.loadtxt(workdir / f"evolver_step{rec['step']}.txt", ndmin=2)
+        X = np.empty((len(data), 3))
+        X[data[:, 0].astype(int) - 1] = data[:, 1:]
+        rec["X"] = X
+    version = subprocess.run([evolver, "-V"], stdin=subprocess.DEVNULL, capture_output=True,
+                             text=True).stdout.splitlines()
+    return {"steps": steps, "process_wall_s": wall,
+            "process_cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+            "version": version[0].strip() if version else "unknown",
+            "warnings": len(re.findall(r"Hessian not positive definite", text))}
+
+
+class _StepClock(logging.Handler):
+    """Process CPU time at each per-step record of :func:`shellbuckle.run.deflate`."""
+
+    def __init__(self):
+        super().__init__(logging.INFO)
+        self.marks = []
+
+    def emit(self, record):
+        if record.name == "shellbuckle.run" and record.msg.startswith("step "):
+            self.marks.append((int(record.args[0]), time.process_time()))
+
+
+def run_ours(mesh, params, schedule, c0_cycle: bool, tol: float, out: Path) -> dict:
+    clock = _StepClock()
+    run_logger = logging.getLogger("shellbuckle.run")
+    old_level = run_logger.level
+    run_logger.setLevel(logging.INFO)
+    run_logger.addHandler(clock)
+    try:
+        cpu0, wall0 = time.process_time(), time.perf_counter()
+        run = deflate(mesh, params, schedule=list(schedule), c0_cycle=c0_cycle, jiggle=0.0,
+                      seed=0, bending="evolver", tol=tol, stop_at_contact=False, out=out)
+        cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    finally:
+        run_logger.removeHandler(clock)
+        run_logger.setLevel(old_level)
+    table = run.table
+    marks = dict(clock.marks)
+    steps, previous = [], cpu0
+    for k in range(1, len(schedule) + 1):
+        row = table.loc[table["step"] == k].iloc[0]
+        rec = {name: row[name].item() if hasattr(row[name], "item") else row[name]
+               for name in ("step", "target_dV_over_V", "dV_over_V", "E_total", "E_stretch",
+                            "E_bend", "E_before_c0_cycle", "pressure", "grad_norm",
+                            "iterations", "inertia", "converged", "wall_s")}
+        rec["cpu_s"] = marks.get(k, math.nan) - previous
+        previous = marks.get(k, math.nan)
+        rec["X"] = run.positions(k)
+        steps.append(rec)
+    return {"steps": steps, "total_cpu_s": cpu, "total_wall_s": wall}
+
+
+def kabsch_distance(A: np.ndarray, B: np.ndarray) -> float:
+    """Largest vertex distance between ``A`` and ``B`` after the best rotation + translation."""
+    a, b = A - A.mean(0), B - B.mean(0)
+    U, _, Vt = np.linalg.svd(a.T @ b)
+    d = np.sign(np.linalg.det(U @ Vt))
+    R = U @ np.diag([1.0, 1.0, d]) @ Vt
+    return float(np.linalg.norm(a @ R - b, axis=1).max())
+
+
+def check(energy: ShellEnergy, volume: Volume, X: np.ndarray) -> dict:
+    """Our energy, relative projected-gradient residual and volume at positions ``X``."""
+    gE = energy.gradient(X)
+    _, r = projected_gradient(gE, volume.gradient(X))
+    return {"E": energy.value(X), "residual": float(np.linalg.norm(r) / np.linalg.norm(gE)),
+            "V": volume.value(X)}
+
+
+def source_version() -> str:
+    """shellbuckle's version and, in a git checkout, its commit (``+dirty`` if src/ differs)."""
+    src = Path(shellbuckle.__file__).resolve().parent
+    try:
+        commit = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+                                capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--", "."],
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return shellbuckle.__version__
+    return f"{shellbuckle.__version__} (git {commit}{'+dirty' if dirty else ''})"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--vertices", type=int, default=642)
+    ap.add_argument("--mesh", choices=("random", "icosphere"), default="random",
+                    help="random_sphere (the paper's randomized mesh) or icosphere")
+    ap.add_argument("--seed", type=int, default=0, help="random_sphere seed")
+    ap.add_argument("--gamma", type=float, default=271.0)
+    ap.add_argument("--nu", type=float, default=1.0 / 3.0)
+    ap.add_argument("--dv", type=float, default=0.019, help="volume step dV/V0")
+    ap.add_argument("--steps", type=int, default=5, help="number of volume steps of --dv")
+    ap.add_argument("--schedule", type=float, nargs="+",
+                    help="target dV/V of each step (instead of --dv/--steps)")
+    ap.add_argument("--c0-cycle", action="store_true",
+                    help="the paper's c0 -> 0 -> 2/R cycle at each step, on both sides")
+    ap.add_argument("--tol", type=float, default=1e-9,
+                    help="shellbuckle's relative projected-gradient tolerance (protocol default)")
+    ap.add_argument("--etol", type=float, default=1e-10,
+                    help="Evolver: stop when a Newton step changes the energy by <= etol |E|")
+    ap.add_argument("--confirm", type=int, default=1,
+                    help="Evolver: extra plain Newton steps after the energy test is met")
+    ap.add_argument("--maxit", type=int, default=300, help="Evolver: Newton/saddle steps per relax")
+    ap.add_argument("--no-pin", action="store_true",
+                    help="Evolver: do not pin the rigid motions (see pin_rigid_motions)")
+    ap.add_argument("--evolver", default="evolver")
+    ap.add_argument("--timeout", type=float, default=6 * 3600.0, help="Evolver time limit (s)")
+    ap.add_argument("--json", type=Path, help="write all measurements to this JSON file")
+    ap.add_argument("--keep", type=Path, help="keep the working files in this folder")
+    args = ap.parse_args(argv)
+
+    evolver = shutil.which(args.evolver)
+    if evolver is None:
+        raise SystemExit(f"Surface Evolver not found as {args.evolver!r} (Debian/Ubuntu: "
+                         "apt-get install evolver-nox; or give --evolver PATH)")
+    if args.schedule is not None:
+        schedule = [float(s) for s in args.schedule]
+    else:
+        schedule = [args.dv * k for k in range(1, args.steps + 1)]
+    if not all(0.0 < s < 1.0 for s in schedule):
+        raise SystemExit(f"every target dV/V must be in (0, 1), got {schedule}")
+
+    params = ShellParameters.from_gamma(args.gamma, nu=args.nu)
+    c0 = 2.0 / params.R
+    t = time.perf_counter()
+    mesh = build_mesh(args.mesh, args.vertices, args.seed)
+    t_mesh = time.perf_counter() - t
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    V0 = volume.value(mesh.X)
+    ff = rest_form_factors(mesh.X, mesh.faces)
+
+    workdir = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench_evolver_"))
+    workdir.mkdir(parents=True, exist_ok=True)
+    try:
+        fe = write_evolver(workdir / "shell.fe", mesh, kappa=params.kappa, c0=c0, A=params.A,
+                           nu=params.nu, form_factors=ff, volume=V0,
+                           title=f"bench_evolver: {args.mesh} {mesh.n_vertices} vertices, "
+                                 f"gamma = {args.gamma:g}, nu = {args.nu:.6g}")
+        pinned = None if args.no_pin else pin_rigid_motions(fe, mesh.X)
+        cmd = workdir / "protocol.cmd"
+        cmd.write_text(evolver_commands(schedule, V0, 0.5 * c0, args.c0_cycle, args.etol,
+                                        args.confirm, args.maxit))
+        print(f"# mesh: {args.mesh}, {mesh.n_vertices} vertices, {len(mesh.faces)} faces "
+              f"(built in {t_mesh:.1f} s); gamma = {args.gamma:g}, nu = {args.nu:.6g}, kappa = 1, "
+              f"c0 = 2/R; {len(schedule)} steps, c0 cycle {'on' if args.c0_cycle else 'off'}, "
+              "no jiggle", flush=True)
+        print("# Evolver rigid-motion gauge: " + ("none (--no-pin)" if pinned is None else
+              "vertex {} fixed, {} on a line, {} in a plane (Evolver ids)".format(
+                  *(v + 1 for v in pinned))), flush=True)
+        se = run_evolver(evolver, workdir, fe, cmd, args.timeout)
+        print(f"# Surface Evolver done: {se['process_wall_s']:.1f} s wall, "
+              f"{se['process_cpu_s']:.1f} s CPU (whole process)", flush=True)
+        ours = run_ours(mesh, params, schedule, args.c0_cycle, args.tol, workdir / "run")
+        print(f"# shellbuckle done: {ours['total_wall_s']:.1f} s wall, {ours['total_cpu_s']:.1f} s "
+              "CPU (whole deflate call)", flush=True)
+    finally:
+        if not args.keep:
+            shutil.rmtree(workdir, ignore_errors=True)
+
+    energy = ShellEnergy.build(mesh, params, bending="evolver", c0=c0, form_factors=ff)
+    rows = []
+    for e, o in zip(se["steps"], ours["steps"]):
+        ce, co = check(energy, volume, e["X"]), check(energy, volume, o["X"])
+        rows.append({
+            "step": o["step"], "target": o["target_dV_over_V"],
+            "dV_SE": 1.0 - e["volume"] / V0, "dV_ours": o["dV_over_V"],
+            "Es_SE": e["E_stretch"], "Es_ours": o["E_stretch"],
+            "Eb_SE": e["E_bend"], "Eb_ours": o["E_bend"],
+            "E_SE": e["E_total"], "E_ours": o["E_total"],
+            "rel_dE": (e["E_total"] - o["E_total"]) / abs(o["E_total"]),
+            "p_SE": -e["body_pressure"], "p_ours": o["pressure"],
+            "it_SE": e["newton"] + e["saddles"] + e["g"], "saddles_SE": e["saddles"],
+            "it_ours": o["iterations"], "neg_SE": e["eigenneg"], "neg_ours": o["inertia"],
+            "res_SE": ce["residual"], "res_ours": co["residual"],
+            "E_SE_by_ours": ce["E"], "dx": kabsch_distance(e["X"], o["X"]),
+            "cpu_SE": e["cpu_s"], "cpu_ours": o["cpu_s"],
+            "wall_SE": e["wall_s"], "wall_ours": o["wall_s"],
+            "converged_SE": bool(e["converged"]), "converged_ours": bool(o["converged"]),
+        })
+
+    header = (f"{'step':>4} {'dV/V':>6} {'E_stretch SE':>13} {'E_stretch ours':>14} "
+              f"{'E_bend SE':>12} {'E_bend ours':>12} {'E_total SE':>19} {'E_total ours':>19} "
+              f"{'rel.diff':>9} {'p SE':>10} {'p ours':>10} {'dx':>8} {'res SE':>8} "
+              f"{'res ours':>8} {'it SE':>5} {'it us':>5} {'neg':>5} {'cpu SE':>7} "
+              f"{'cpu us':>7} {'ratio':>6} {'wall SE':>7} {'wall us':>7}")
+    print(header)
+    for r in rows:
+        ratio = r["cpu_SE"] / r["cpu_ours"] if r["cpu_ours"] > 0 else math.nan
+        print(f"{r['step']:>4d} {r['dV_ours']:>6.3f} {r['Es_SE']:>13.8g} {r['Es_ours']:>14.8g} "
+              f"{r['Eb_SE']:>12.7g} {r['Eb_ours']:>12.7g} {r['E_SE']:>19.15g} {r['E_ours']:>19.15g} "
+              f"{r['rel_dE']:>9.1e} {r['p_SE']:>10.6g} {r['p_ours']:>10.6g} {r['dx']:>8.1e} "
+              f"{r['res_SE']:>8.1e} {r['res_ours']:>8.1e} {r['it_SE']:>5d} {r['it_ours']:>5d} "
+              f"{r['neg_SE']:>2d}/{r['neg_ours']:<2d} {r['cpu_SE']:>7.2f} {r['cpu_ours']:>7.2f} "
+              f"{ratio:>6.2f} {r['wall_SE']:>7.2f} {r['wall_ours']:>7.2f}")
+    model = max(abs(r["E_SE_by_ours"] - r["E_SE"]) / abs(r["E_SE"]) for r in rows)
+    print(f"# same model: shellbuckle's energy of Evolver's conformations differs from Evolver's "
+          f"total_energy by at most {model:.1e} relative")
+    cpu_se = sum(r["cpu_SE"] for r in rows)
+    cpu_us = sum(r["cpu_ours"] for r in rows)
+    wall_se = sum(r["wall_SE"] for r in rows)
+    wall_us = sum(r["wall_ours"] for r in rows)
+    print(f"# totals over the steps: CPU Evolver {cpu_se:.2f} s, ours {cpu_us:.2f} s "
+          f"(ratio {cpu_se / cpu_us:.2f}); wall Evolver {wall_se:.2f} s, ours {wall_us:.2f} s "
+          f"(ratio {wall_se / wall_us:.2f})")
+    print("# p = -dE/dV for both (p SE = -body[1].pressure); dx = largest vertex distance between "
+          "the two conformations after rigid alignment (R = 1); res = |grad E - lam grad V| / "
+          "|grad E| of each side's conformation, computed by shellbuckle; it SE = g + hessian/"
+          "hessian_seek + saddle steps; neg = eigenneg (SE) / inertia (ours); cpu us of step 1 "
+          "includes the run set-up")
+    print(f"# Evolver {se['version']}; shellbuckle {source_version()}, numpy "
+          f"{np.__version__}, Python {platform.python_version()}, {platform.machine()}, "
+          f"load average {os.getloadavg()[0]:.2f}")
+
+    if args.json:
+        out = {"command": " ".join([Path(sys.argv[0]).as_posix()] + (argv or sys.argv[1:])),
+               "mesh": args.mesh, "vertices": mesh.n_vertices, "seed": args.seed,
+               "gamma": args.gamma, "nu": args.nu, "schedule": schedule,
+               "c0_cycle": args.c0_cycle, "tol_ours": args.tol, "etol_evolver": args.etol,
+               "confirm_evolver": args.confirm,
+               "pinned_evolver_ids": None if pinned is None else [v + 1 for v in pinned],
+               "model_check_rel": model,
+               "evolver": se["version"], "shellbuckle": source_version(),
+               "numpy": np.__version__, "python": platform.python_version(),
+               "machine": platform.machine(), "load_average": os.getloadavg()[0],
+               "evolver_process_wall_s": se["process_wall_s"],
+               "evolver_process_cpu_s": se["process_cpu_s"],
+               "ours_total_wall_s": ours["total_wall_s"], "ours_total_cpu_s": ours["total_cpu_s"],
+               "cpu_ratio": cpu_se / cpu_us, "wall_ratio": wall_se / wall_us, "steps": rows}
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(out, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
