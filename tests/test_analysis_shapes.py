@@ -51,8 +51,8 @@ def cos_profile(m, eps):
 
 
 def polygon_profile(m):
-    """``f(phi)`` of a regular m-gon with straight sides, apices at ``phi = 2 pi k / m``,
-    normalized to a mean of about 1 (the inscribed radius is cos(pi/m) times the apex one)."""
+    """``f(phi)`` of a regular m-gon with straight sides: apices (``f = 1``) at
+    ``phi = pi/m + 2 pi k/m``, the middles of the sides (``f = cos(pi/m)``) at ``2 pi k/m``."""
     def f(phi):
         t = np.mod(phi + np.pi / m, 2 * np.pi / m) - np.pi / m
         return np.cos(np.pi / m) / np.cos(t)
