@@ -136,15 +136,26 @@ def test_classification_columns_and_dict():
 
 # ---------------------------------------------------------------------- a real deflation
 
-@pytest.fixture(scope="module")
-def run_271(tmp_path_factory):
-    """gamma = 271 on a 642-vertex icosphere up to dV/V = 0.3 (the paper's Fig. 8b regime)."""
-    from shellbuckle.params import ShellParameters
-    from shellbuckle.run import deflate
+_RUNS = {}
 
-    out = tmp_path_factory.mktemp("analysis") / "g271"
-    return deflate(icosphere(8), ShellParameters.from_gamma(271.0, nu=1 / 3), until=0.3, seed=1,
-                   out=out)
+
+def deflated_271(tmp_path_factory):
+    """gamma = 271 on a 642-vertex icosphere up to dV/V = 0.3 (the paper's Fig. 8b regime),
+    made once per test session (also used by test_analysis_events)."""
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import Run, deflate
+
+    if "g271" not in _RUNS:
+        out = tmp_path_factory.mktemp("analysis") / "g271"
+        deflate(icosphere(8), ShellParameters.from_gamma(271.0, nu=1 / 3), until=0.3, seed=1,
+                out=out)
+        _RUNS["g271"] = out
+    return Run.open(_RUNS["g271"])
+
+
+@pytest.fixture
+def run_271(tmp_path_factory):
+    return deflated_271(tmp_path_factory)
 
 
 def test_gamma_271_is_a_sphere_then_a_capsule(run_271):  # about 15 s
