@@ -1,0 +1,559 @@
+"""Parameter sweeps: many deflations as Dask tasks, resumable, with a catalogue.
+
+A :class:`SweepSpec` is a grid: every combination of ``gamma``, ``nu``, mesh (randomized
+spheres of ``vertices`` vertices, and icosahedral spheres of ``icosphere`` levels), ``seeds``
+and the protocol options ``dv``, ``until``, ``c0_cycle``, ``jiggle``, ``bending`` and
+``method`` is one run. :func:`run_sweep` gives each run its own run folder in the sweep folder,
+named from its parameters (:func:`run_name`, e.g. ``g2333_nu0.333_v3594_s0``), runs them as
+Dask tasks and rewrites the catalogue (:mod:`shellbuckle.store.catalogue`) as they finish::
+
+    from shellbuckle.sweep import SweepSpec, run_sweep
+    spec = SweepSpec(gamma=[271, 2333, 29160], seeds=[0, 1, 2], vertices=3594)
+    catalogue = run_sweep(spec, "sweeps/paper")          # pandas DataFrame, one row per run
+
+Execution: a local ``distributed.LocalCluster`` with one single-threaded worker process per
+core by default (``OMP_NUM_THREADS``, ``MKL_NUM_THREADS`` and ``OPENBLAS_NUM_THREADS`` set to
+1 in the workers: parallelism comes from the runs), or any Dask scheduler: an address
+(``tcp://host:8786``), a ``distributed.Client``, or a cluster object such as dask-jobqueue's
+``SLURMCluster`` (see ``docs/sweeps.md``). Workers must see the sweep folder (a shared file
+system on a cluster).
+
+Resuming: running the same sweep again in the same folder skips the finished runs without
+opening them for writing, resumes the others from their last finished step (the run store
+guarantees that a finished step is never recomputed or lost, and the random stream of a step
+depends only on the seed and the step index, so the result equals an uninterrupted run) and
+retries the failed ones. A failing run is recorded (status ``failed``, message, traceback in
+``logs/<name>.traceback.txt``) and the others continue.
+
+The random mesh of a run with seed ``s`` is ``random_sphere(vertices, seed=s)``, as in
+:func:`shellbuckle.run.deflate`; the seed also drives the jiggle.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import numbers
+import os
+import socket
+import time
+import tomllib
+import traceback as _traceback
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from .protocol.deflate import DEFAULT_JIGGLE, METHODS
+from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
+from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
+                              write_sweep_file)
+
+log = logging.getLogger(__name__)
+
+#: Environment of local workers: one BLAS/OpenMP thread per worker process.
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+#: Default mesh: the paper's randomized sphere.
+PAPER_VERTICES = 3594
+#: Seconds between checks while another process writes a run this sweep wants to continue.
+LOCK_POLL_S = 2.0
+
+_AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
+         "bending", "method")
+
+
+def _bending_kinds() -> tuple:
+    from .energies.total import BENDING_KINDS
+
+    return BENDING_KINDS
+
+
+def _values(name: str, value) -> tuple:
+    """``value`` as a tuple without repeats (order kept); a scalar is a one-element axis."""
+    if isinstance(value, (str, bytes, numbers.Number)) or value is None:
+        value = (value,)
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a value or a list of values, got {value!r}") from None
+    if not items:
+        raise ValueError(f"{name} must hold at least one value, got an empty list")
+    return tuple(dict.fromkeys(items))
+
+
+def _real(name: str, v, low=-math.inf, high=math.inf, *, low_open=True, high_open=True,
+          allowed: str = "") -> float:
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+        raise ValueError(f"{name} must be a finite real number, got {v!r}")
+    v = float(v)
+    if (v < low or (low_open and v == low)) or (v > high or (high_open and v == high)):
+        raise ValueError(f"{name} = {v!r} is out of range; allowed: {allowed}")
+    return v
+
+
+def _integer(name: str, v, minimum: int, allowed: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)
+        else:
+            raise ValueError(f"{name} must be an integer, got {v!r}")
+    if v < minimum:
+        raise ValueError(f"{name} = {v!r} is out of range; allowed: {allowed}")
+    return int(v)
+
+
+def _fmt(x: float, digits: int = 6) -> str:
+    return format(float(x), f".{digits}g").replace("e+", "e")
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A grid of deflation runs; every combination of the axes is one run.
+
+    Each axis takes a value or a list of values (repeats are dropped):
+
+    - ``gamma`` (> 0): Foppl-von Karman numbers A R^2/kappa (default 2333);
+    - ``nu`` (in (-1, 1)): 2D Poisson ratios (default 1/3);
+    - ``seeds`` (integers >= 0): seed of the randomized mesh and of the jiggle (default 0);
+    - ``vertices`` (integers >= 4): randomized isotropic spheres with that many vertices;
+      ``icosphere`` (integers >= 1): icosahedral spheres of that level (10 n^2 + 2 vertices).
+      Both may be given; with neither, the paper's randomized sphere of 3594 vertices;
+    - protocol (:func:`shellbuckle.run.deflate`): ``dv`` (volume step / V0, in (0, 0.5];
+      default 0.019), ``until`` (last target dV/V, in (0, 0.99); default 0.95), ``c0_cycle``
+      (booleans; default True), ``jiggle`` (in [0, 0.5]; default 0.01), ``bending``
+      (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``).
+
+    ``tol`` (minimizer tolerance) and ``stop_at_contact`` are the same for every run. Each value
+    is checked here (ValueError naming it); a combination that cannot run (``until < dv`` for
+    one pair) fails that run only, unless no pair of ``dv`` and ``until`` can run at all.
+    """
+
+    gamma: tuple = (2333.0,)
+    nu: tuple = (1.0 / 3.0,)
+    seeds: tuple = (0,)
+    vertices: tuple | None = None
+    icosphere: tuple | None = None
+    dv: tuple = (PAPER_DV,)
+    until: tuple = (0.95,)
+    c0_cycle: tuple = (True,)
+    jiggle: tuple = (DEFAULT_JIGGLE,)
+    bending: tuple = ("juelicher",)
+    method: tuple = ("newton",)
+    tol: float = 1e-9
+    stop_at_contact: bool = True
+
+    def __post_init__(self):
+        put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        put("gamma", tuple(_real("gamma", g, 0.0, allowed="gamma > 0")
+                           for g in _values("gamma", self.gamma)))
+        put("nu", tuple(_real("nu", n, -1.0, 1.0, allowed="-1 < nu < 1")
+                        for n in _values("nu", self.nu)))
+        put("seeds", tuple(_integer("seed", s, 0, "integers >= 0")
+                           for s in _values("seeds", self.seeds)))
+        vertices, levels = self.vertices, self.icosphere
+        if vertices is None and levels is None:
+            vertices = (PAPER_VERTICES,)
+        put("vertices", () if vertices is None else tuple(
+            _integer("vertices", n, 4, "integers >= 4") for n in _values("vertices", vertices)))
+        put("icosphere", () if levels is None else tuple(
+            _integer("icosphere", n, 1, "integers >= 1") for n in _values("icosphere", levels)))
+        put("dv", tuple(_real("dv", d, 0.0, 0.5, high_open=False, allowed="0 < dv <= 0.5")
+                        for d in _values("dv", self.dv)))
+        put("until", tuple(_real("until", u, 0.0, MAX_DV_OVER_V,
+                                 allowed=f"0 < until < {MAX_DV_OVER_V}")
+                           for u in _values("until", self.until)))
+        put("jiggle", tuple(_real("jiggle", j, 0.0, 0.5, low_open=False, high_open=False,
+                                  allowed="0 <= jiggle <= 0.5")
+                            for j in _values("jiggle", self.jiggle)))
+        cycles = _values("c0_cycle", self.c0_cycle)
+        if not all(isinstance(c, bool) for c in cycles):
+            raise ValueError(f"c0_cycle must be true or false, got {list(cycles)!r}")
+        put("c0_cycle", cycles)
+        for name, allowed in (("bending", _bending_kinds()), ("method", METHODS)):
+            values = _values(name, getattr(self, name))
+            for v in values:
+                if v not in allowed:
+                    raise ValueError(f"{name} {v!r} is not known; allowed: {', '.join(allowed)}")
+            put(name, values)
+        put("tol", _real("tol", self.tol, 0.0, 1e-2, allowed="0 < tol < 1e-2"))
+        if not isinstance(self.stop_at_contact, bool):
+            raise ValueError(f"stop_at_contact must be true or false, got {self.stop_at_contact!r}")
+        if not any(u >= d for d in self.dv for u in self.until):
+            raise ValueError(f"no run has a volume step: every until {list(self.until)} is "
+                             f"smaller than every dv {list(self.dv)}; allowed: until >= dv")
+        self.points()  # refuses two grid points with the same run name
+
+    # ------------------------------------------------------------------ input
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "SweepSpec":
+        """A spec from plain values (lists or scalars); unknown keys are refused by name."""
+        names = [f.name for f in fields(cls)]
+        unknown = sorted(set(data) - set(names))
+        if unknown:
+            raise ValueError(f"unknown sweep option(s) {', '.join(map(repr, unknown))}; "
+                             f"allowed: {', '.join(names)}")
+        return cls(**data)
+
+    @classmethod
+    def from_toml(cls, path, **overrides) -> "SweepSpec":
+        """A spec from a TOML file (see ``examples/sweep.toml``), ``overrides`` taking precedence.
+
+        Keys are the :class:`SweepSpec` fields, at the top level or in tables ``[sweep]``,
+        ``[mesh]`` and ``[protocol]`` (grouping only). Giving ``vertices`` or ``icosphere`` in
+        ``overrides`` replaces both mesh axes of the file.
+        """
+        path = Path(path)
+        try:
+            with open(path, "rb") as fh:
+                raw = tomllib.load(fh)
+        except FileNotFoundError:
+            raise ValueError(f"sweep file {str(path)!r} does not exist") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"sweep file {str(path)!r} is not valid TOML ({exc})") from None
+        data: dict = {}
+        for key, value in raw.items():
+            items = value.items() if key in ("sweep", "mesh", "protocol") and \
+                isinstance(value, dict) else [(key, value)]
+            for k, v in items:
+                if k in data:
+                    raise ValueError(f"sweep file {str(path)!r} gives {k!r} twice")
+                data[k] = v
+        if "vertices" in overrides or "icosphere" in overrides:
+            data.pop("vertices", None)
+            data.pop("icosphere", None)
+        data.update(overrides)
+        return cls.from_dict(data)
+
+    def to_dict(self) -> dict:
+        """Plain JSON values (lists for the axes), as stored in ``sweep.json``."""
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+                for f in fields(self)}
+
+    # ------------------------------------------------------------------ the grid
+
+    def meshes(self) -> list[tuple[str, int]]:
+        return [("random", n) for n in self.vertices] + [("icosphere", n) for n in self.icosphere]
+
+    def points(self) -> list[dict]:
+        """Every run of the grid: a dict of its parameters with its ``name`` (see
+        :func:`run_name`), in grid order (gamma slowest, method fastest)."""
+        out, names = [], {}
+        for gamma, nu, (mesh, n), seed, dv, until, cycle, jig, bend, method in itertools.product(
+                self.gamma, self.nu, self.meshes(), self.seeds, self.dv, self.until,
+                self.c0_cycle, self.jiggle, self.bending, self.method):
+            point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
+                     "n_vertices": n if mesh == "random" else 10 * n * n + 2,
+                     "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
+                     "c0_cycle": cycle, "jiggle": jig, "bending": bend, "method": method,
+                     "tol": self.tol, "stop_at_contact": self.stop_at_contact}
+            name = run_name(point)
+            if name in names:
+                raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
+                                 f"{names[name]} and {point}; give values that differ in their "
+                                 "first 3 (nu) or 6 (others) significant digits")
+            names[name] = point
+            out.append({"name": name, **point})
+        return out
+
+    def __len__(self) -> int:
+        return len(self.points())
+
+
+def run_name(point: dict) -> str:
+    """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
+    the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
+    ``_noc0``, ``_j<jiggle>``, ``_<bending>``, ``_<method>``), e.g. ``g2333_nu0.333_v3594_s0``
+    or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
+    a run keeps its folder when the sweep grows."""
+    mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
+    name = f"g{_fmt(point['gamma'])}_nu{_fmt(point['nu'], 3)}_{mesh}_s{point['seed']}"
+    if point["dv"] != PAPER_DV:
+        name += f"_dv{_fmt(point['dv'])}"
+    if point["until"] != 0.95:
+        name += f"_until{_fmt(point['until'])}"
+    if not point["c0_cycle"]:
+        name += "_noc0"
+    if point["jiggle"] != DEFAULT_JIGGLE:
+        name += f"_j{_fmt(point['jiggle'])}"
+    if point["bending"] != "juelicher":
+        name += f"_{point['bending']}"
+    if point["method"] != "newton":
+        name += f"_{point['method']}"
+    return name
+
+
+# --------------------------------------------------------------------------- one run (worker)
+
+def _run_state(folder: Path, analyze: bool) -> str:
+    """``done`` (finished, and analysed when asked), ``analyze`` (finished, not analysed),
+    ``failed``, or ``todo`` (absent or resumable). Reads only; never takes a lock."""
+    from .store.run import RUN_JSON, RunStore
+
+    if not (folder / RUN_JSON).exists():
+        return "todo"
+    try:
+        store = RunStore.open(folder)
+    except ValueError:
+        return "todo"
+    if store.status == "finished":
+        if analyze and _analysis_available() and not analysis_complete(store):
+            return "analyze"
+        return "done"
+    return "failed" if store.status == "failed" else "todo"
+
+
+def _analysis_available() -> bool:
+    try:
+        from .analysis import analyze_run  # noqa: F401
+    except ImportError:  # pragma: no cover - analysis module absent
+        return False
+    return True
+
+
+def _build(point: dict):
+    from .mesh import icosphere, random_sphere
+    from .params import ShellParameters
+
+    params = ShellParameters.from_gamma(point["gamma"], nu=point["nu"])
+    if point["mesh"] == "random":
+        mesh = random_sphere(point["n_vertices"], seed=point["seed"])
+    else:
+        mesh = icosphere(point["icosphere"])
+    return mesh, params
+
+
+def _deflate(point: dict, folder: Path):
+    """Create or resume the run; waits while another live process writes the same run (a
+    task of an earlier, killed client that a remote cluster still runs)."""
+    from .run import Run, deflate
+
+    mesh, params = _build(point)
+    while True:
+        try:
+            return deflate(mesh, params, dv=point["dv"], until=point["until"],
+                           c0_cycle=point["c0_cycle"], jiggle=point["jiggle"],
+                           seed=point["seed"], bending=point["bending"], method=point["method"],
+                           tol=point["tol"], stop_at_contact=point["stop_at_contact"],
+                           out=folder, progress=False)
+        except ValueError:
+            if not _writer_active(folder):
+                raise
+        log.warning("run %s is being written by another process; waiting for it", folder)
+        while _writer_active(folder):
+            time.sleep(LOCK_POLL_S)
+        if _run_state(folder, analyze=False) == "done":
+            return Run.open(folder)
+
+
+def _writer_active(folder: Path) -> bool:
+    from .store.run import RUN_JSON, RunStore
+
+    return (folder / RUN_JSON).exists() and RunStore.open(folder).writer_active
+
+
+def _worker_name() -> str | None:
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        return None
+
+
+def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
+    """Compute (or resume, or analyse) one run of a sweep; never raises for a failing run.
+
+    The run folder is ``out_dir/<name>``. A finished (and analysed) run is left untouched.
+    Returns ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of
+    ``skipped``, ``finished``, ``paused``, ``failed``; the attempt is logged in
+    ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This is the Dask
+    task of :func:`run_sweep`; it also runs on its own.
+    """
+    out_dir = Path(out_dir)
+    name = point["name"]
+    folder = out_dir / name
+    state = _run_state(folder, analyze)
+    if state == "done":
+        return {"name": name, "outcome": "skipped", "status": "finished", "message": None,
+                "wall_s": 0.0}
+    t0 = time.perf_counter()
+    attempt = {"started": _now(), "ended": None, "wall_s": None, "host": socket.gethostname(),
+               "pid": os.getpid(), "worker": _worker_name(),
+               "action": "analyze" if state == "analyze" else "deflate", "outcome": "running",
+               "status": None, "message": None}
+    record_attempt(out_dir, name, attempt)
+    tb = None
+    try:
+        from .run import Run
+
+        run = Run.open(folder) if state == "analyze" else _deflate(point, folder)
+        status, message = run.status, run.store.meta.get("message")
+        if status == "finished" and analyze and _analysis_available():
+            from .analysis import analyze_run
+
+            analyze_run(run)
+        outcome = "finished" if status == "finished" else "paused"
+    except Exception as exc:  # recorded, the sweep goes on
+        status, message, outcome = "failed", f"{type(exc).__name__}: {exc}", "failed"
+        tb = _traceback.format_exc()
+        log.warning("run %s failed: %s", name, message)
+    attempt.update(ended=_now(), wall_s=time.perf_counter() - t0, outcome=outcome,
+                   status=status, message=message)
+    record_attempt(out_dir, name, attempt, replace_last=True, traceback=tb)
+    return {"name": name, "outcome": outcome, "status": status, "message": message,
+            "wall_s": attempt["wall_s"]}
+
+
+def _now() -> str:
+    import datetime as _dt
+
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+# --------------------------------------------------------------------------- the sweep (client)
+
+def default_workers() -> int:
+    """Cores available to this process."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _client(scheduler, workers):
+    """``(client, owned)``: a Dask client for ``scheduler`` and the objects to close after."""
+    from distributed import Client, LocalCluster
+
+    if workers is not None:
+        workers = _integer("workers", workers, 1, "integers >= 1")
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
+                               processes=True, dashboard_address=None, env=dict(WORKER_ENV))
+        client = Client(cluster)
+        return client, [client, cluster]
+    if isinstance(scheduler, Client):
+        if workers is not None:
+            raise ValueError("workers applies to the local cluster or to a cluster object, "
+                             "not to an existing Client")
+        return scheduler, []
+    if isinstance(scheduler, str):
+        if workers is not None:
+            raise ValueError("workers applies to the local cluster or to a cluster object; "
+                             "with a scheduler address the cluster has its own workers")
+        client = Client(scheduler)
+        return client, [client]
+    if hasattr(scheduler, "scheduler_address"):  # a Cluster (dask-jobqueue, LocalCluster...)
+        if workers is not None:
+            scheduler.scale(workers)
+        client = Client(scheduler)
+        return client, [client]
+    raise ValueError(f"scheduler must be None (local cluster), an address string, a "
+                     f"distributed.Client or a cluster object, got {type(scheduler).__name__}")
+
+
+def check_scheduler(scheduler) -> None:
+    """Refuse a scheduler address that cannot be an address (before any work)."""
+    if scheduler is None or not isinstance(scheduler, str):
+        return
+    text = scheduler.strip()
+    if not text or any(c.isspace() for c in text):
+        raise ValueError(f"scheduler address {scheduler!r} is not an address "
+                         "(e.g. tcp://host:8786)")
+    body = text.split("://", 1)[1] if "://" in text else text
+    host, sep, port = body.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"scheduler address {scheduler!r} must be [protocol://]host:port with "
+                         "a port in 1..65535 (e.g. tcp://host:8786)")
+
+
+def _cost(point: dict) -> float:
+    """Relative cost estimate (vertices times steps), to start the longest runs first."""
+    return point["n_vertices"] * max(1, int(point["until"] / point["dv"]))
+
+
+def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None = None,
+              progress: bool = True, analyze: bool = True,
+              retry_failed: bool = True):
+    """Run every point of ``spec`` in ``out_dir`` on Dask; return the catalogue (DataFrame).
+
+    ``scheduler``: None for a local cluster of ``workers`` single-threaded processes (default:
+    one per core), an address (``tcp://host:8786``), a ``distributed.Client``, or a cluster
+    object (``workers`` then scales it). ``analyze``: classify the steps of each finished run
+    on its worker (:func:`shellbuckle.analysis.analyze_run`) so the catalogue has thresholds
+    and W. ``retry_failed``: run again the points whose last attempt failed (they resume from
+    their last finished step). The catalogue (``out_dir/catalogue.csv``) is rewritten after
+    every finished task; finished runs are skipped without being opened for writing.
+    """
+    if not isinstance(spec, SweepSpec):
+        raise ValueError(f"spec must be a SweepSpec, got {type(spec).__name__}")
+    check_scheduler(scheduler)
+    if workers is not None:
+        _integer("workers", workers, 1, "integers >= 1")
+    out_dir = Path(out_dir)
+    points = spec.points()
+    write_sweep_file(out_dir, spec.to_dict(),
+                     {p["name"]: {k: v for k, v in p.items() if k != "name"} for p in points})
+    catalogue = Catalogue(out_dir)
+    todo = []
+    for p in points:
+        state = _run_state(out_dir / p["name"], analyze)
+        last = read_attempts(out_dir, p["name"])[-1:]
+        failed = state == "failed" or (last and last[0].get("outcome") == "failed"
+                                       and state != "done")
+        if state == "done" or (failed and not retry_failed):
+            continue
+        todo.append(p)
+    todo.sort(key=_cost, reverse=True)
+    catalogue.write()
+    log.info("sweep %s: %d runs, %d to compute", out_dir, len(points), len(todo))
+    if todo:
+        _execute(todo, out_dir, catalogue, scheduler=scheduler, workers=workers,
+                 progress=progress, analyze=analyze, total=len(points))
+    return catalogue.write()
+
+
+def _execute(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, progress,
+             analyze, total) -> None:
+    from distributed import as_completed
+
+    client, owned = _client(scheduler, workers)
+    bar = None
+    futures = []
+    try:
+        futures = [client.submit(run_point, p, str(out_dir), analyze=analyze, pure=False,
+                                 key=f"shellbuckle-{p['name']}-{os.urandom(4).hex()}")
+                   for p in todo]
+        names = {f.key: p["name"] for f, p in zip(futures, todo)}
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=total, initial=total - len(todo), unit="run", desc="sweep",
+                       dynamic_ncols=True)
+        failed = 0
+        for future in as_completed(futures):
+            try:
+                result = future.result()
+            except Exception as exc:  # the task itself died: worker killed, cancelled...
+                name = names[future.key]
+                message = f"{type(exc).__name__}: {exc}"
+                log.warning("run %s: task failed: %s", name, message)
+                record_attempt(out_dir, name, {"started": None, "ended": _now(), "wall_s": None,
+                                               "host": None, "pid": None, "worker": None,
+                                               "action": "deflate", "outcome": "failed",
+                                               "status": "failed", "message": message},
+                               traceback="".join(_traceback.format_exception(exc)))
+                result = {"outcome": "failed"}
+            failed += result["outcome"] == "failed"
+            catalogue.write()
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix_str(f"failed {failed}")
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        for obj in owned:
+            obj.close()
