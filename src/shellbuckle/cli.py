@@ -528,8 +528,103 @@ def _register_analyze(sub) -> None:
     parser.set_defaults(func=run)
 
 
+def _register_sweep(sub) -> None:
+    """``shellbuckle sweep [--config FILE.toml] [--gamma G,..] ... --out DIR``: runs on Dask."""
+    parser = sub.add_parser(
+        "sweep", help="run a grid of deflations in parallel on Dask, resumable, with a catalogue",
+        description="Run every combination of the given values (gamma x nu x mesh x seeds x "
+                    "protocol options) as one deflation, each in its own run folder in DIR named "
+                    "from its parameters (e.g. g2333_nu0.333_v3594_s0), on a local Dask cluster "
+                    "of single-threaded workers (default: one per core) or on the Dask scheduler "
+                    "at ADDR. DIR/catalogue.csv (one row per run: parameters, status, steps, "
+                    "final dV/V, stop reason, thresholds, W, wall time) is rewritten as runs "
+                    "finish. Running the same command again skips finished runs, resumes "
+                    "unfinished ones from their last step and retries failed ones. Lists are "
+                    "comma-separated; integer lists also take ranges (0-4). Values on the "
+                    "command line replace those of --config.")
+    parser.add_argument("--config", metavar="FILE.toml", help="sweep file (see examples/sweep.toml)")
+    parser.add_argument("--gamma", metavar="G,..", help="Foppl-von Karman numbers, > 0 (default 2333)")
+    parser.add_argument("--nu", metavar="NU,..", help="2D Poisson ratios in (-1, 1) (default 1/3)")
+    parser.add_argument("--seeds", metavar="S,..", help="seeds of mesh and jiggle, >= 0 (default 0)")
+    parser.add_argument("--vertices", metavar="N,..",
+                        help="randomized spheres with N vertices (default 3594 unless --icosphere)")
+    parser.add_argument("--icosphere", metavar="N,..",
+                        help="icosahedral spheres of level N (10 N^2 + 2 vertices)")
+    parser.add_argument("--dv", metavar="DV,..", help="volume steps / V0 in (0, 0.5] (default 0.019)")
+    parser.add_argument("--until", metavar="U,..", help="last target dV/V in (0, 0.99) (default 0.95)")
+    parser.add_argument("--jiggle", metavar="J,..", help="jiggle amplitudes in [0, 0.5] (default 0.01)")
+    parser.add_argument("--bending", metavar="B,..", help="bending models: juelicher, evolver")
+    parser.add_argument("--method", metavar="M,..", help="minimizers: newton, alternate, cg, gd")
+    parser.add_argument("--no-c0-cycle", action="store_true",
+                        help="no zero-spontaneous-curvature cycle (the paper's potato shapes)")
+    parser.add_argument("--workers", metavar="N", help="local worker processes (default: cores)")
+    parser.add_argument("--scheduler", metavar="ADDR",
+                        help="address of a running Dask scheduler (e.g. tcp://host:8786)")
+    parser.add_argument("--no-analysis", action="store_true",
+                        help="do not classify the steps of finished runs (no thresholds or W)")
+    parser.add_argument("--no-retry", action="store_true", help="do not rerun failed runs")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--out", required=True, metavar="DIR", help="sweep folder")
+
+    def values(option: str, text: str, kind) -> list:
+        """Comma-separated values of ``kind``; integers also as inclusive ranges ``a-b``."""
+        out = []
+        for item in (part.strip() for part in text.split(",")):
+            try:
+                if kind is str:
+                    if not item:
+                        raise ValueError
+                    out.append(item)
+                elif kind is int and "-" in item[1:]:
+                    low, high = (int(x) for x in item.split("-", 1))
+                    if high < low:
+                        raise ValueError
+                    out.extend(range(low, high + 1))
+                else:
+                    out.append(kind(item))
+            except ValueError:
+                what = {int: "an integer (or a range a-b)", float: "a number"}.get(kind, "a name")
+                raise ValueError(f"{option}: {item!r} is not {what}") from None
+        return out
+
+    def run(args) -> int:
+        from pathlib import Path
+
+        from .sweep import SweepSpec, check_scheduler, run_sweep
+
+        kinds = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
+                 "dv": float, "until": float, "jiggle": float, "bending": str, "method": str}
+        given = {name: values(f"--{name}", getattr(args, name), kind)
+                 for name, kind in kinds.items() if getattr(args, name) is not None}
+        if args.no_c0_cycle:
+            given["c0_cycle"] = False
+        workers = None if args.workers is None else values("--workers", args.workers, int)
+        if workers is not None and (len(workers) != 1 or workers[0] < 1):
+            raise ValueError(f"--workers: {args.workers!r} must be one integer >= 1")
+        workers = workers[0] if workers else None
+        if workers is not None and args.scheduler is not None:
+            raise ValueError("--workers applies to the local cluster; a --scheduler has its "
+                             "own workers")
+        check_scheduler(args.scheduler)
+        spec = (SweepSpec.from_toml(args.config, **given) if args.config
+                else SweepSpec.from_dict(given))
+        catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
+                              progress=not args.quiet, analyze=not args.no_analysis,
+                              retry_failed=not args.no_retry)
+        counts = catalogue["status"].value_counts()
+        print(f"sweep {args.out}: {len(catalogue)} runs; "
+              + ", ".join(f"{status} {n}" for status, n in counts.items()))
+        print(f"catalogue: {Path(args.out) / 'catalogue.csv'}")
+        failed = catalogue[catalogue["status"] == "failed"]
+        for _, row in failed.iterrows():
+            print(f"  failed: {row['name']}: {row['message']}", file=sys.stderr)
+        return 1 if len(failed) else 0
+
+    parser.set_defaults(func=run)
+
+
 # Each entry adds one sub-command: register(subparsers) -> sets ``func`` via set_defaults.
-_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy, _register_view, _register_export, _register_classify, _register_analyze]
+_COMMANDS: list = [_register_deflate, _register_resume, _register_table, _register_theory, _register_evolver_energy, _register_view, _register_export, _register_classify, _register_analyze, _register_sweep]
 
 
 def main(argv=None) -> int:
