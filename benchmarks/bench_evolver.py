@@ -350,6 +350,40 @@ def source_version() -> str:
     return f"{shellbuckle.__version__} (git {commit}{'+dirty' if dirty else ''})"
 
 
+def shape_rows(faces, se_steps, our_steps) -> list[dict] | None:
+    """Shape class, dents, dent depth and the angle between the two dent axes, per step
+    (``shellbuckle.analysis.classify``); ``None`` if that module cannot be imported."""
+    try:
+        from shellbuckle.analysis.classify import classify
+    except ImportError as exc:
+        print(f"# shapes not classified: {exc}")
+        return None
+    rows = []
+    for e, o in zip(se_steps, our_steps):
+        ce, co = classify(e["X"], faces), classify(o["X"], faces)
+        angle = math.nan
+        if ce.dent_axis is not None and co.dent_axis is not None:
+            cos = float(np.clip(np.dot(ce.dent_axis, co.dent_axis), -1.0, 1.0))
+            angle = math.degrees(math.acos(cos))
+        rows.append({"step": o["step"], "shape_SE": ce.shape, "shape_ours": co.shape,
+                     "dents_SE": ce.n_dimples, "dents_ours": co.n_dimples,
+                     "depth_SE": ce.dent_depth, "depth_ours": co.dent_depth,
+                     "rim_SE": ce.rim_radius, "rim_ours": co.rim_radius,
+                     "axis_angle_deg": angle})
+    return rows
+
+
+def _finite_or_none(value):
+    """JSON-safe copy: non-finite floats become ``null``."""
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -463,6 +497,18 @@ def main(argv=None) -> int:
               f"{r['res_SE']:>8.1e} {r['res_ours']:>8.1e} {r['it_SE']:>5d} {r['it_ours']:>5d} "
               f"{r['neg_SE']:>2d}/{r['neg_ours']:<2d} {r['cpu_SE']:>7.2f} {r['cpu_ours']:>7.2f} "
               f"{ratio:>6.2f} {r['wall_SE']:>7.2f} {r['wall_ours']:>7.2f}")
+    shapes = shape_rows(mesh.faces, se["steps"], ours["steps"])
+    if shapes:
+        print(f"{'step':>4} {'shape SE':>10} {'shape ours':>10} {'dents':>5} {'depth SE':>9} "
+              f"{'depth ours':>10} {'rim SE':>7} {'rim ours':>8} {'axes deg':>10}")
+        def num(value, width, digits):
+            return f"{'-':>{width}}" if not np.isfinite(value) else f"{value:>{width}.{digits}f}"
+
+        for s in shapes:
+            print(f"{s['step']:>4d} {s['shape_SE']:>10} {s['shape_ours']:>10} "
+                  f"{s['dents_SE']:>2d}/{s['dents_ours']:<2d} {num(s['depth_SE'], 9, 4)} "
+                  f"{num(s['depth_ours'], 10, 4)} {num(s['rim_SE'], 7, 4)} "
+                  f"{num(s['rim_ours'], 8, 4)} {num(s['axis_angle_deg'], 10, 1)}")
     model = max(abs(r["E_SE_by_ours"] - r["E_SE"]) / abs(r["E_SE"]) for r in rows)
     print(f"# same model: shellbuckle's energy of Evolver's conformations differs from Evolver's "
           f"total_energy by at most {model:.1e} relative")
@@ -496,9 +542,10 @@ def main(argv=None) -> int:
                "evolver_process_wall_s": se["process_wall_s"],
                "evolver_process_cpu_s": se["process_cpu_s"],
                "ours_total_wall_s": ours["total_wall_s"], "ours_total_cpu_s": ours["total_cpu_s"],
-               "cpu_ratio": cpu_se / cpu_us, "wall_ratio": wall_se / wall_us, "steps": rows}
+               "cpu_ratio": cpu_se / cpu_us, "wall_ratio": wall_se / wall_us, "steps": rows,
+               "shapes": shapes}
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(out, indent=1) + "\n")
+        args.json.write_text(json.dumps(_finite_or_none(out), indent=1) + "\n")
     return 0
 
 
