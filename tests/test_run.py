@@ -102,3 +102,16 @@ def test_a_different_run_is_never_written_into_an_existing_run(uninterrupted, ca
     code = main(["deflate", "--icosphere", "4", "--gamma", "743", "--out", str(uninterrupted.path)])
     assert code == 2 and "different run" in capsys.readouterr().err
     _compare(Run.open(uninterrupted.path).table, before)
+
+
+def test_cli_continues_from_a_stored_step(uninterrupted, tmp_path, capsys):
+    out = tmp_path / "back"
+    code = main(["deflate", "--from", str(uninterrupted.path), "--step", "3", "--dv", "-0.03",
+                 "--until", "0.0", "--out", str(out), "--quiet", "--no-plot"])
+    assert code == 0
+    table = Run.open(out).table
+    np.testing.assert_array_equal(Run.open(out).positions(0), uninterrupted.positions(3))
+    assert table["dV_over_V"].iloc[-1] == pytest.approx(0.0, abs=1e-12)
+    assert main(["deflate", "--from", str(uninterrupted.path), "--step", "99", "--dv", "-0.03",
+                 "--until", "0.0", "--out", str(tmp_path / "bad")]) == 2
+    assert "allowed" in capsys.readouterr().err

@@ -230,6 +230,13 @@ def _register_deflate(sub) -> None:
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
                        help="minimizer (default newton)")
     proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
+    branch = parser.add_argument_group("continue from a stored step (re-inflation, other paths)")
+    branch.add_argument("--from", dest="from_run", metavar="DIR",
+                        help="start from a step of the run in DIR (its reference sphere, "
+                             "parameters and protocol options are kept; give --dv/--until or "
+                             "--schedule, e.g. --dv -0.019 to re-inflate)")
+    branch.add_argument("--step", type=int, default=-1,
+                        help="the step of --from to start from (default: the last)")
     parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
     parser.add_argument("--no-plot", action="store_true", help="do not write the figure at the end")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -243,6 +250,8 @@ def _cmd_deflate(args) -> int:
 
     from .protocol.deflate import Protocol
 
+    if args.from_run is not None:
+        return _cmd_continue(args)
     choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
     if sum(choices) > 1:
         raise ValueError("give only one of --vertices, --icosphere and --mesh")
@@ -289,6 +298,32 @@ def _cmd_deflate(args) -> int:
                   bending=args.bending, method=args.method, c0=c0, out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
                   pressures=pressures)
+    return _report_run(run, plot=not args.no_plot)
+
+
+def _cmd_continue(args) -> int:
+    from .run import Run, continue_from
+
+    if args.out is None:
+        raise ValueError("--from needs --out: the new run gets its own folder")
+    for name in ("gamma", "nu", "E", "sigma", "d", "R", "vertices", "icosphere", "mesh"):
+        if getattr(args, name) is not None:
+            raise ValueError(f"--{name} cannot be combined with --from: the run continues with "
+                             "the stored mesh and parameters")
+    parent = Run.open(args.from_run)
+    steps = parent.steps
+    if not steps:
+        raise ValueError(f"{args.from_run} has no finished step to continue from")
+    step = args.step if args.step >= 0 else steps[args.step] if -len(steps) <= args.step else None
+    if step not in steps:
+        raise ValueError(f"--step {args.step} is not a finished step of {args.from_run}; allowed: "
+                         f"0..{steps[-1]} (or -1 .. -{len(steps)} counted from the last)")
+    schedule = ([float(x) for x in args.schedule.split(",") if x.strip()]
+                if args.schedule else None)
+    run = continue_from(parent, step, args.out, schedule=schedule,
+                        dv=None if schedule else args.dv, until=None if schedule else args.until,
+                        progress=not args.quiet, c0_cycle=not args.no_c0_cycle,
+                        jiggle=args.jiggle, seed=args.seed)
     return _report_run(run, plot=not args.no_plot)
 
 
