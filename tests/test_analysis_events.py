@@ -13,8 +13,8 @@ from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run
 from shellbuckle.store import RunStore
 
-from test_analysis_classify import deflated_271, wrinkle_profile
-from test_analysis_shapes import inverted_cap, mesh, modulated_cap, polygon_profile
+from test_analysis_classify import deflated_271, polygonal_profile, wrinkle_profile
+from test_analysis_shapes import inverted_cap, mesh, modulated_cap
 
 ALPHA = np.radians(45)
 
@@ -25,12 +25,12 @@ SCRIPT = [
     ("sphere", 20.0, 0),
     ("cap40", 8.0, 1),     # primary buckling: pressure drops by 60 %; inertia 0 -> 1
     ("cap50", 7.5, 0),     # inertia 1 -> 0
-    ("poly5", 7.4, 0),     # a single polygonal step: not persistent, no event
+    ("poly4", 7.4, 0),     # a single polygonal step: not persistent, no event
     ("cap55", 7.3, 0),
-    ("poly5", 7.2, 0),     # loss of axisymmetry (holds for steps 7 and 8)
-    ("poly5", 7.1, 0),
+    ("poly4", 7.2, 0),     # loss of axisymmetry (holds for steps 7 and 8)
+    ("poly4", 7.1, 0),
     ("wrinkled5", 7.0, 0),  # wrinkled once only: no wrinkle event yet
-    ("poly5", 6.9, 0),
+    ("poly4", 6.9, 0),
     ("wrinkled6", 6.8, 0),  # appearance of wrinkles (holds until the end)
     ("wrinkled6", 6.7, 0),
 ]
@@ -44,7 +44,7 @@ def _conformation(name, X0, k):
     if name.startswith("cap"):
         return inverted_cap(X0, np.radians(float(name[3:])), (0.2, 0.1, 1.0))
     if name.startswith("poly"):
-        return modulated_cap(X0, ALPHA, polygon_profile(int(name[4:])), (0.2, 0.1, 1.0), 0.3)
+        return modulated_cap(X0, ALPHA, polygonal_profile(int(name[4:])), (0.2, 0.1, 1.0), 0.3)
     return modulated_cap(X0, ALPHA, wrinkle_profile(int(name[8:])), (0.2, 0.1, 1.0), 0.3)
 
 

@@ -55,10 +55,12 @@ class Classification:
 
     ``shape`` (one of :data:`SHAPES`), ``n_dimples``, ``corners``, ``W``; the dent's
     ``dent_depth`` (indentation), ``dent_sagitta``, ``dent_axis (3,)`` (unit, out of the dent;
-    ``None`` without a dent), ``rim_radius``, ``rim_spectrum (N_MODES,)`` (relative amplitudes of
-    the modes ``m = 1..N_MODES``), ``dominant_mode`` and ``dominant_amplitude`` (largest mode
-    ``m >= 2``), ``axisymmetry_threshold`` used, ``concave_arcs``; ``asphericity``,
-    ``contact_distance``; and all ``descriptors``.
+    ``None`` without a dent); the rim, i.e. the outline of the depression
+    (:mod:`.wrinkles`): ``rim_radius``, ``rim_spectrum (N_MODES,)`` (relative amplitudes of the
+    modes ``m = 1..N_MODES``), ``dominant_mode`` and ``dominant_amplitude`` (largest mode
+    ``m >= 2``), ``axisymmetry_threshold`` used, ``concave_arcs``; ``crest_radius`` (the
+    ridge, the geometric rim); ``asphericity``, ``contact_distance``; and all
+    ``descriptors``.
     """
 
     shape: str
@@ -69,6 +71,7 @@ class Classification:
     dent_sagitta: float
     dent_axis: tuple | None
     rim_radius: float
+    crest_radius: float
     rim_spectrum: tuple | None
     dominant_mode: int
     dominant_amplitude: float
@@ -83,7 +86,8 @@ class Classification:
         ``W`` and the dent and rim numbers)."""
         return {"shape": self.shape, "n_dimples": self.n_dimples, "corners": self.corners,
                 "W": self.W, "dent_depth": self.dent_depth, "dent_sagitta": self.dent_sagitta,
-                "rim_radius": self.rim_radius, "rim_mode": self.dominant_mode,
+                "rim_radius": self.rim_radius, "crest_radius": self.crest_radius,
+                "rim_mode": self.dominant_mode,
                 "rim_amplitude": self.dominant_amplitude, "concave_arcs": self.concave_arcs,
                 "asphericity": self.asphericity, "contact_distance": self.contact_distance}
 
@@ -98,14 +102,15 @@ class Classification:
         return out
 
 
-def axisymmetry_threshold(rim: wrinkles.Rim, mean_edge: float) -> float:
-    """Relative mode amplitude above which ``rim`` is not axisymmetric (module docstring)."""
-    return max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES * mean_edge / rim.radius)
+def axisymmetry_threshold(curve: wrinkles.Curve, mean_edge: float) -> float:
+    """Relative mode amplitude above which ``curve`` is not axisymmetric (module docstring)."""
+    return max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES * mean_edge / curve.radius)
 
 
 def classify_descriptors(d: Descriptors) -> Classification:
     """Classify a conformation from its :class:`~.descriptors.Descriptors`."""
     rim = d.rim
+    outline = rim.outline if rim is not None else None
     n = d.n_dimples
     corners = W = 0
     threshold = math.nan
@@ -116,15 +121,15 @@ def classify_descriptors(d: Descriptors) -> Classification:
     elif rim is None:
         shape = "other"
     else:
-        threshold = axisymmetry_threshold(rim, d.geometry.mean_edge)
-        if rim.dominant_amplitude < threshold:
+        threshold = axisymmetry_threshold(outline, d.geometry.mean_edge)
+        if outline.dominant_amplitude < threshold:
             shape = "capsule"
-        elif rim.n_apices < 2:
+        elif outline.n_apices < 2:
             shape = "other"
         else:
-            corners = rim.n_apices
-            concave = rim.n_concave
-            if concave >= 2 and concave >= WRINKLED_FRACTION * rim.n_apices:
+            corners = outline.n_apices
+            concave = outline.n_concave
+            if concave >= 2 and concave >= WRINKLED_FRACTION * outline.n_apices:
                 shape, W = "wrinkled", corners
             else:
                 shape = "polygonal"
@@ -134,12 +139,13 @@ def classify_descriptors(d: Descriptors) -> Classification:
         shape=shape, n_dimples=n, corners=corners, W=W, dent_depth=d.dent_depth,
         dent_sagitta=d.dent_sagitta,
         dent_axis=None if axis is None else tuple(float(v) for v in axis),
-        rim_radius=rim.radius if rim is not None else math.nan,
-        rim_spectrum=None if rim is None else tuple(float(v) for v in rim.spectrum),
-        dominant_mode=rim.dominant_mode if rim is not None else 0,
-        dominant_amplitude=rim.dominant_amplitude if rim is not None else math.nan,
+        rim_radius=outline.radius if rim is not None else math.nan,
+        crest_radius=rim.crest.radius if rim is not None else math.nan,
+        rim_spectrum=None if rim is None else tuple(float(v) for v in outline.spectrum),
+        dominant_mode=outline.dominant_mode if rim is not None else 0,
+        dominant_amplitude=outline.dominant_amplitude if rim is not None else math.nan,
         axisymmetry_threshold=threshold,
-        concave_arcs=rim.n_concave if rim is not None else 0,
+        concave_arcs=outline.n_concave if rim is not None else 0,
         asphericity=d.asphericity, contact_distance=d.contact_distance, descriptors=d)
 
 
@@ -156,8 +162,8 @@ def classify(X, faces) -> Classification:
 
 #: Analysis columns written by :func:`analyze_run` (the first four are SPEC §7's).
 RUN_COLUMNS = ("shape", "n_dimples", "corners", "W", "dent_depth", "dent_sagitta",
-               "rim_radius", "rim_mode", "rim_amplitude", "concave_arcs", "asphericity",
-               "contact_distance")
+               "rim_radius", "crest_radius", "rim_mode", "rim_amplitude", "concave_arcs",
+               "asphericity", "contact_distance")
 
 
 def _open_run(run_or_path):

@@ -88,8 +88,11 @@ class Geometry:
 
     ``X (V, 3)``; ``face_area (F,)``; ``vertex_area (V,)`` (``1/3`` of the adjacent face
     areas); ``vertex_normal (V, 3)`` unit, area-weighted mean of the outward face normals;
-    ``H (V,)`` Jülicher mean curvature; ``area``, ``volume`` (enclosed, positive for outward
-    faces), ``R_area = sqrt(area / 4 pi)`` and ``mean_edge`` (mean edge length).
+    ``H (V,)`` Jülicher mean curvature and ``H_smooth (V,)`` the same smoothed over
+    ``max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES mean_edge)`` (its sign defines the
+    dents); ``area``, ``volume`` (enclosed, positive for outward faces),
+    ``R_area = sqrt(area / 4 pi)`` and ``mean_edge`` (mean edge length); ``stiffness``, the
+    cotangent stiffness matrix used by :meth:`smooth`.
     """
 
     X: np.ndarray
@@ -102,6 +105,7 @@ class Geometry:
     R_area: float
     mean_edge: float
     stiffness: sp.csr_matrix = field(repr=False)
+    H_smooth: np.ndarray = field(default=None, repr=False)
     _factors: dict = field(default_factory=dict, repr=False)
 
     def smooth(self, values, length: float) -> np.ndarray:
@@ -228,10 +232,13 @@ class ShapeAnalyzer:
         e = self.topology.edges
         mean_edge = float(np.linalg.norm(X[e[:, 1]] - X[e[:, 0]], axis=1).mean())
         H = self.bending.mean_curvature(X)
-        return Geometry(X=X, face_area=face_area, vertex_area=vertex_area,
+        geom = Geometry(X=X, face_area=face_area, vertex_area=vertex_area,
                         vertex_normal=_unit(normal), H=H, area=area, volume=volume,
                         R_area=math.sqrt(area / (4.0 * math.pi)), mean_edge=mean_edge,
                         stiffness=_cotan_stiffness(X, F, 2.0 * face_area))
+        length = max(H_SMOOTHING_LENGTH * geom.R_area, H_SMOOTHING_EDGES * mean_edge)
+        object.__setattr__(geom, "H_smooth", geom.smooth(H, length))
+        return geom
 
     # ------------------------------------------------------------------ dents
 
@@ -251,8 +258,7 @@ class ShapeAnalyzer:
 
     def inverted_components(self, geom: Geometry) -> list:
         """All connected components of ``H < 0`` as :class:`Dent` objects, largest first."""
-        length = max(H_SMOOTHING_LENGTH * geom.R_area, H_SMOOTHING_EDGES * geom.mean_edge)
-        labels = self.components(geom.smooth(geom.H, length) < 0.0)
+        labels = self.components(geom.H_smooth < 0.0)
         if labels.max() < 0:
             return []
         inside = labels >= 0
@@ -357,7 +363,7 @@ def _depths(geom: Geometry, rim) -> tuple[float, float]:
     z = (geom.X - rim.origin) @ rim.axis
     bowl = rim.bowl
     z_min = float(z[bowl].min())
-    sagitta = float(np.mean(rim.z) - z_min)
+    sagitta = float(rim.crest.height - z_min)
     outside = ~bowl
     if outside.sum() < 4:
         return math.nan, sagitta

@@ -1,27 +1,41 @@
-"""The rim of a dent as a curve: extraction, Fourier spectrum, apices, concavity, wrinkles W.
+"""The rim of a dent as curves: extraction, Fourier spectrum, apices, concavity, wrinkles W.
 
-Rim
----
-In the dent frame (origin ``o`` on the axis, unit axis ``u`` pointing out of the dent, see
-:mod:`.descriptors`), let ``rhohat_i`` be the unit vector from the axis to vertex ``i``
-(perpendicular to ``u``) and ``n_i`` the vertex normal. The dent's wall faces the axis,
-``n . rhohat < 0``; the outer shell faces away from it, ``n . rhohat > 0``. The *bowl* is the
-connected region of vertices with ``n . rhohat < 0`` that contains the dent, and the *rim* is
-its outer boundary: the crest line where the normal's radial tilt changes sign, i.e. the
-highest points of the shell along the axis, which is where the inverted cap of mirror
-buckling meets the rest of the sphere. The zero crossing of ``n . rhohat`` is interpolated
-linearly on every edge leaving the bowl; the crossings of each face form a segment, and the
-segments, projected on the plane normal to ``u``, are cut by ``RIM_SAMPLES`` rays from the
-axis at azimuths ``phi_k = 2 pi k / K``. The outermost cut of each ray gives the rim radius
-``rho(phi_k)`` and height ``z(phi_k)``. The frame is then refined twice: ``u`` becomes the unit
-vector area ``sum A_i n_i`` of the bowl (the normal of the rim's plane, by Stokes) and ``o`` is
-moved to the centroid of the area enclosed by the projected rim. If some ray misses the rim
-(the bowl does not surround the axis), there is no rim.
+Two closed curves around the dent axis are traced, in the dent frame (origin ``o`` on the axis,
+unit axis ``u`` pointing out of the dent, see :mod:`.descriptors`), each sampled by
+``RIM_SAMPLES`` rays from the axis at azimuths ``phi_k = 2 pi k / K``:
+
+Crest (the geometric rim)
+-------------------------
+Let ``rhohat_i`` be the unit vector from the axis to vertex ``i`` (perpendicular to ``u``) and
+``n_i`` the vertex normal (smoothed over a short length, see the constants). The dent's wall
+faces the axis, ``n . rhohat < 0``; the outer shell faces away from it, ``n . rhohat > 0``. The
+*bowl* is the connected region of vertices with ``n . rhohat < 0`` that contains the dent, and
+the *crest* is its outer boundary: the ridge where the normal's radial tilt changes sign, i.e.
+the highest points of the shell along the axis; for mirror buckling, the circle where the
+inverted cap meets the rest of the sphere (radius ``R sin(alpha)``). The zero crossing of
+``n . rhohat`` is interpolated linearly on every edge leaving the bowl; the two crossings in
+each face leaving it form a segment; the segments, projected on the plane normal to ``u``, are
+cut by the rays, and the outermost cut of each ray gives ``rho(phi_k)`` and the height
+``z(phi_k)``. The frame is refined twice: ``u`` becomes the unit vector area ``sum A_i n_i`` of
+the bowl (the normal of the crest's plane, by Stokes) and ``o`` moves to the centroid of the
+area enclosed by the projected crest. If a ray misses the crest (the bowl does not surround
+the axis) the dent has no rim.
+
+Outline (the limit of the depression)
+-------------------------------------
+The outer boundary of the dent itself, the zero crossing of the smoothed mean curvature
+(:mod:`.descriptors`), traced in the same frame in the same way. This is the curve the paper
+looks at: loss of axisymmetry "when the rim of the depression becomes polygonal", then wrinkles
+when "the inner part of the rim becomes convex between two successive apices" (the "limits of
+the depression concave between the apices"; Quilliet et al. 2008, §4.3-4.4). On a polygonal
+dent the apices of the outline are the sharp tips of the inverted region at the corners (the
+d-cone tips), which the rounded crest may hardly show. On a smooth dent the outline lies
+inside the crest, by about the half-width of the ridge plus the curvature smoothing.
 
 Spectrum
 --------
 ``rho(phi) = c_0 + sum_m (a_m cos m phi + b_m sin m phi)``; ``spectrum[m - 1] =
-sqrt(a_m^2 + b_m^2) / c_0`` for ``m = 1 .. N_MODES``: a rim ``r0 (1 + eps cos(m phi))`` has
+sqrt(a_m^2 + b_m^2) / c_0`` for ``m = 1 .. N_MODES``: a curve ``r0 (1 + eps cos(m phi))`` has
 ``spectrum[m - 1] = eps``. The amplitudes do not depend on where ``phi = 0`` is, so they are
 invariant to rotations of the shell. ``m = 1`` measures an off-centre frame and is not used
 for axisymmetry.
@@ -29,19 +43,21 @@ for axisymmetry.
 Apices, concavity and W
 -----------------------
 ``rho`` is smoothed with a periodic Gaussian of standard deviation ``ell`` in arc length
-(``ell / rim_radius`` in azimuth, applied to the Fourier coefficients), with
+(``ell / radius`` in azimuth, applied to the Fourier coefficients), with
 ``ell = max(RIM_SMOOTHING_LENGTH R_area, RIM_SMOOTHING_EDGES h)`` (``h`` the mean edge length):
 a physical length, raised to the mesh resolution on coarse meshes, where shorter details are
 discretization noise. *Apices* are the local maxima of the smoothed ``rho`` whose topographic
-prominence is at least ``APEX_PROMINENCE`` times the rim radius. The signed curvature of the
-smoothed planar rim curve, ``kappa = (rho^2 + 2 rho'^2 - rho rho'') / (rho^2 + rho'^2)^(3/2)``
-(derivatives in ``phi``, computed exactly from the smoothed Fourier series), is made
-dimensionless as ``kappa * rim_radius`` (1 on a circle, 0 on a straight side of a polygon). The
-arc between two successive apices is *concave* when its smallest ``kappa * rim_radius`` is below
-``-CONCAVITY``: the rim bows towards the axis between the apices, the paper's criterion for
-wrinkles ("the inner part of the rim becomes convex between two successive apices",
-Quilliet et al. 2008, §4.4). The number of wrinkles ``W`` is the number of apices of a rim on
-which at least ``WRINKLED_FRACTION`` of the arcs are concave (:mod:`.classify`).
+prominence is at least ``APEX_PROMINENCE`` times the radius and ``APEX_RELATIVE`` times the
+largest prominence. The signed curvature of the smoothed planar curve,
+``kappa = (rho^2 + 2 rho'^2 - rho rho'') / (rho^2 + rho'^2)^(3/2)`` (derivatives in ``phi``,
+exact from the smoothed Fourier series), is made dimensionless as ``kappa * radius`` (1 on a
+circle, 0 on a straight side of a polygon). The concavity of the arc between two successive
+apices is its mean ``kappa * radius`` over the middle ``ARC_WINDOW`` of the arc, centred on the
+arc's innermost point: the turning of the tangent across the window divided by its length, a
+first-derivative measure much less noisy than the pointwise curvature. The arc is *concave*
+when this is below ``-CONCAVITY``: the outline bows towards the axis between the apices. The
+number of wrinkles ``W`` is the number of apices of an outline on which at least
+``WRINKLED_FRACTION`` of the arcs are concave (:mod:`.classify`).
 """
 
 from __future__ import annotations
@@ -79,26 +95,19 @@ FRAME_ITERATIONS = 2
 
 
 @dataclass(frozen=True, eq=False)
-class Rim:
-    """Rim of a dent (module docstring).
+class Curve:
+    """A closed curve around the dent axis and its analysis (module docstring).
 
-    Frame: ``origin (3,)``, unit ``axis (3,)`` out of the dent, ``e1``, ``e2`` completing a
-    right-handed basis (``phi`` measured from ``e1`` towards ``e2``). Curve: ``phi (K,)``,
-    ``rho (K,)``, ``z (K,)``. ``bowl (V,)`` bool: the vertices of the bowl. Analysis:
+    ``phi (K,)`` azimuths, ``rho (K,)`` distances from the axis, ``z (K,)`` heights along it;
     ``smoothing_length``, ``rho_smooth (K,)``, ``curvature (K,)`` (``kappa * radius``),
-    ``spectrum (N_MODES,)``, ``apices (n,)`` indices into ``phi``, ``prominences (n,)`` (relative
-    to the radius), ``arc_min_curvature (n,)``: smallest ``kappa * radius`` on the arc from apex
-    ``j`` to apex ``j + 1`` (cyclically).
+    ``spectrum (N_MODES,)``, ``apices (n,)`` (indices into ``phi``), ``prominences (n,)``
+    (relative to the radius) and ``arc_curvature (n,)``: concavity measure of the arc from apex
+    ``j`` to apex ``j + 1`` (cyclically; empty with fewer than two apices).
     """
 
-    origin: np.ndarray
-    axis: np.ndarray
-    e1: np.ndarray
-    e2: np.ndarray
     phi: np.ndarray
     rho: np.ndarray
     z: np.ndarray
-    bowl: np.ndarray
     smoothing_length: float
     rho_smooth: np.ndarray
     curvature: np.ndarray
@@ -106,6 +115,11 @@ class Rim:
     apices: np.ndarray
     prominences: np.ndarray
     arc_curvature: np.ndarray
+
+    @classmethod
+    def analysed(cls, phi, rho, z, smoothing_length: float) -> "Curve":
+        return cls(phi=phi, rho=rho, z=z, smoothing_length=float(smoothing_length),
+                   **rim_shape(rho, smoothing_length))
 
     @property
     def radius(self) -> float:
@@ -131,6 +145,24 @@ class Rim:
     @property
     def dominant_amplitude(self) -> float:
         return float(self.spectrum[1:].max())
+
+
+@dataclass(frozen=True, eq=False)
+class Rim:
+    """The rim of a dent: frame, bowl, crest and outline (module docstring).
+
+    Frame: ``origin (3,)``, unit ``axis (3,)`` out of the dent, ``e1``, ``e2`` completing a
+    right-handed basis (``phi`` measured from ``e1`` towards ``e2``). ``bowl (V,)`` bool: the
+    vertices of the bowl. ``crest`` and ``outline``: :class:`Curve`.
+    """
+
+    origin: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    bowl: np.ndarray
+    crest: Curve
+    outline: Curve
 
 
 def _basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,8 +202,9 @@ def _envelope(A2, B2, zA, zB, phi):
 
 
 def _crossings(geom, topology, bowl, n_rho):
-    """Rim segments: for every face leaving the bowl, the two interpolated zero crossings of
-    ``n . rhohat`` on its edges that leave the bowl. Returns ``(S, 2, 3)`` end points."""
+    """Boundary segments of the vertex set ``bowl``: for every face leaving it, the two zero
+    crossings of the field ``n_rho`` (negative inside) interpolated on its edges that leave it.
+    Returns ``(S, 2, 3)`` end points."""
     e = topology.edges
     boundary = bowl[e[:, 0]] != bowl[e[:, 1]]
     inner = np.where(bowl[e[:, 0]], e[:, 0], e[:, 1])
@@ -190,8 +223,9 @@ def _crossings(geom, topology, bowl, n_rho):
 
 def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
     """Rim of ``dent`` (:class:`shellbuckle.analysis.descriptors.Dent`) on the conformation
-    ``geom``, or ``None`` if the bowl does not surround the dent's axis. ``components(mask)``
-    labels connected vertex sets (:meth:`ShapeAnalyzer.components`)."""
+    ``geom`` (:class:`~shellbuckle.analysis.descriptors.Geometry`, whose ``H_smooth`` defines
+    the dent), or ``None`` if the bowl or the dent does not surround the dent's axis.
+    ``components(mask)`` labels connected vertex sets (:meth:`ShapeAnalyzer.components`)."""
     X = geom.X
     in_dent = np.zeros(len(X), dtype=bool)
     in_dent[dent.vertices] = True
@@ -211,14 +245,8 @@ def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
         labels = components(n_rho < 0.0)
         hit = np.unique(labels[in_dent & (labels >= 0)])
         bowl = np.isin(labels, hit) & (labels >= 0) | in_dent
-        seg = _crossings(geom, topology, bowl, n_rho)
-        if len(seg) == 0:
-            return None
-        rel_seg = seg - o
-        A2 = np.stack([rel_seg[:, 0] @ e1, rel_seg[:, 0] @ e2], axis=1)
-        B2 = np.stack([rel_seg[:, 1] @ e1, rel_seg[:, 1] @ e2], axis=1)
-        r, zr = _envelope(A2, B2, rel_seg[:, 0] @ u, rel_seg[:, 1] @ u, phi)
-        if not np.isfinite(r).all():
+        r, zr = _trace(geom, topology, bowl, n_rho, o, u, e1, e2, phi)
+        if r is None:
             return None
         if it == FRAME_ITERATIONS:
             break
@@ -231,14 +259,28 @@ def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
         o = o + cx * e1 + cy * e2
         w = geom.vertex_area[bowl]
         u = _unit((w[:, None] * normal[bowl]).sum(axis=0))
+    ro, zo = _trace(geom, topology, in_dent, geom.H_smooth, o, u, e1, e2, phi)
+    if ro is None:
+        return None
     length = max(RIM_SMOOTHING_LENGTH * geom.R_area, RIM_SMOOTHING_EDGES * geom.mean_edge)
-    return _analysed(o, u, e1, e2, phi, r, zr, bowl, length)
+    return Rim(origin=o, axis=u, e1=e1, e2=e2, bowl=bowl,
+               crest=Curve.analysed(phi, r, zr, length),
+               outline=Curve.analysed(phi, ro, zo, length))
 
 
-def _analysed(o, u, e1, e2, phi, rho, z, bowl, length) -> Rim:
-    shape = rim_shape(rho, length)
-    return Rim(origin=o, axis=u, e1=e1, e2=e2, phi=phi, rho=rho, z=z, bowl=bowl,
-               smoothing_length=float(length), **shape)
+def _trace(geom, topology, region, field, o, u, e1, e2, phi):
+    """Outer boundary of the vertex set ``region`` (where ``field < 0``) cut by the rays:
+    ``(rho (K,), z (K,))``, or ``(None, None)`` if some ray misses it."""
+    seg = _crossings(geom, topology, region, field)
+    if len(seg) == 0:
+        return None, None
+    rel = seg - o
+    A2 = np.stack([rel[:, 0] @ e1, rel[:, 0] @ e2], axis=1)
+    B2 = np.stack([rel[:, 1] @ e1, rel[:, 1] @ e2], axis=1)
+    r, z = _envelope(A2, B2, rel[:, 0] @ u, rel[:, 1] @ u, phi)
+    if not np.isfinite(r).all():
+        return None, None
+    return r, z
 
 
 def rim_shape(rho, smoothing_length: float) -> dict:
@@ -298,16 +340,18 @@ def _periodic_peaks(r: np.ndarray, prominence: float):
 
 
 def rim_summary(rim: Rim | None) -> dict:
-    """Flat JSON-able rim descriptors (NaN/None without a rim)."""
+    """Flat JSON-able rim descriptors (NaN/None without a rim): ``crest_*`` for the crest,
+    ``rim_*`` for the outline of the depression."""
     if rim is None:
-        return {"rim_radius": math.nan, "rim_height": math.nan, "rim_spectrum": None,
-                "rim_dominant_mode": None, "rim_dominant_amplitude": math.nan,
-                "rim_apices": 0, "rim_concave_arcs": 0, "rim_min_curvature": math.nan,
-                "rim_smoothing_length": math.nan}
-    return {"rim_radius": rim.radius, "rim_height": rim.height,
-            "rim_spectrum": [float(v) for v in rim.spectrum],
-            "rim_dominant_mode": rim.dominant_mode,
-            "rim_dominant_amplitude": rim.dominant_amplitude,
-            "rim_apices": rim.n_apices, "rim_concave_arcs": rim.n_concave,
-            "rim_min_curvature": float(rim.curvature.min()),
-            "rim_smoothing_length": rim.smoothing_length}
+        return {"crest_radius": math.nan, "crest_height": math.nan, "crest_spectrum": None,
+                "rim_radius": math.nan, "rim_spectrum": None, "rim_dominant_mode": None,
+                "rim_dominant_amplitude": math.nan, "rim_apices": 0, "rim_concave_arcs": 0,
+                "rim_arc_curvature": None, "rim_smoothing_length": math.nan}
+    c, o = rim.crest, rim.outline
+    return {"crest_radius": c.radius, "crest_height": c.height,
+            "crest_spectrum": [float(v) for v in c.spectrum],
+            "rim_radius": o.radius, "rim_spectrum": [float(v) for v in o.spectrum],
+            "rim_dominant_mode": o.dominant_mode, "rim_dominant_amplitude": o.dominant_amplitude,
+            "rim_apices": o.n_apices, "rim_concave_arcs": o.n_concave,
+            "rim_arc_curvature": [float(v) for v in o.arc_curvature],
+            "rim_smoothing_length": o.smoothing_length}
