@@ -230,8 +230,12 @@ def stop_reason(status: str, message: str | None) -> str | None:
 
 
 def _analysis_columns(store: RunStore, table: pd.DataFrame) -> dict:
-    """Thresholds, W average and last shape from the stored analysis; {} if not analysed."""
-    if not analysis_complete(store):
+    """Thresholds, W average and last shape from the stored analysis; {} if not analysed.
+
+    Completeness is judged on ``table`` itself (one snapshot), not on a second read of the
+    folder, which the worker may be writing meanwhile.
+    """
+    if "shape" not in table.columns or table["shape"].isna().any():
         return {}
     try:
         from ..analysis import events

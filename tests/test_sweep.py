@@ -1,0 +1,312 @@
+"""Sweeps: the grid, the catalogue against the run folders, Dask execution, kill and resume.
+
+Oracles: the run folders read with h5py and json only (the store's documented layout, not the
+catalogue code); an uninterrupted sweep for the interrupted one; file hashes and mtimes for
+"nothing finished is recomputed"; the grid's product size and hand-made pressure tables.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import itertools
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from shellbuckle.cli import main as cli_main
+from shellbuckle.store.catalogue import (CATALOGUE_CSV, SWEEP_JSON, TIMING_COLUMNS, Catalogue,
+                                         pressure_drop_dV_over_V, write_sweep_file)
+from shellbuckle.sweep import SweepSpec, run_name, run_point, run_sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# 8 points: 4 runs of 5 volume steps on the 92-vertex icosphere, and 4 whose `until` is below
+# `dv` (an empty schedule: deflate raises for these grid points only).
+SMALL = dict(gamma=[271, 2333], seeds=[0, 1], icosphere=3, until=[0.1, 0.015])
+
+
+def _small_spec() -> SweepSpec:
+    return SweepSpec(**SMALL)
+
+
+def _valid(point) -> bool:
+    return point["until"] >= point["dv"]
+
+
+# --------------------------------------------------------------------------- oracles
+
+def _folder_truth(folder: Path) -> dict:
+    """Status, last step and last dV/V of a run folder, read with json and h5py only."""
+    meta = json.loads((folder / "run.json").read_text())
+    records = []
+    for name in sorted(glob.glob(str(folder / "steps" / "step_*.h5"))):
+        with h5py.File(name, "r") as f:
+            records.append(json.loads(f.attrs["record_json"]))
+    return {"status": meta["status"], "message": meta["message"], "gamma": meta["params"]["gamma"],
+            "seed": meta["protocol"]["seed"], "steps": records[-1]["step"],
+            "final_dV_over_V": records[-1]["dV_over_V"], "n_steps": len(records),
+            "wall_s": sum(r["wall_s"] for r in records)}
+
+
+def _file_states(folder: Path) -> dict:
+    """{relative path: (mtime_ns, sha256)} of every file under ``folder``."""
+    out = {}
+    for path in sorted(folder.rglob("*")):
+        if path.is_file():
+            out[str(path.relative_to(folder))] = (path.stat().st_mtime_ns,
+                                                  hashlib.sha256(path.read_bytes()).hexdigest())
+    return out
+
+
+def _results(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.drop(columns=list(TIMING_COLUMNS)).reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------- the grid
+
+def test_grid_is_the_product_of_the_axes_with_unique_stable_names():
+    axes = dict(gamma=[271, 2333, 29160], nu=[1 / 3, 0.2], seeds=[0, 1], vertices=[642],
+                icosphere=[3, 4], until=[0.3, 0.5], c0_cycle=[True, False])
+    spec = SweepSpec(**axes)
+    points = spec.points()
+    assert len(points) == 3 * 2 * 2 * (1 + 2) * 2 * 2 == len(spec)
+    assert len({p["name"] for p in points}) == len(points)
+    expected = set(itertools.product(axes["gamma"], axes["nu"], axes["seeds"], axes["until"],
+                                     axes["c0_cycle"]))
+    assert {(p["gamma"], p["nu"], p["seed"], p["until"], p["c0_cycle"]) for p in points} == expected
+    # a run's name depends on its own parameters only: a sub-grid gives the same names
+    sub = SweepSpec(gamma=2333, nu=0.2, seeds=1, icosphere=4, until=0.5, c0_cycle=False)
+    (only,) = sub.points()
+    assert only["name"] in {p["name"] for p in points}
+    assert only["name"] == run_name(only) == "g2333_nu0.2_ico4_s1_until0.5_noc0"
+    assert only["n_vertices"] == 10 * 4 ** 2 + 2
+
+
+def test_default_names_follow_the_paper_run():
+    (point,) = SweepSpec().points()
+    assert point["name"] == "g2333_nu0.333_v3594_s0"
+    assert point["nu"] == 1 / 3 and point["dv"] == 0.019 and point["until"] == 0.95
+
+
+@pytest.mark.parametrize("bad, named", [
+    (dict(gamma=[271, -1]), "gamma"), (dict(gamma=float("nan")), "gamma"),
+    (dict(nu=1.0), "nu"), (dict(seeds=[0, -1]), "seed"), (dict(seeds=[0.5]), "seed"),
+    (dict(vertices=3), "vertices"), (dict(icosphere=0), "icosphere"), (dict(dv=0), "dv"),
+    (dict(dv=0.6), "dv"), (dict(until=0.995), "until"), (dict(jiggle=0.7), "jiggle"),
+    (dict(bending="helfrich"), "helfrich"), (dict(method="bfgs"), "bfgs"),
+    (dict(c0_cycle="yes"), "c0_cycle"), (dict(gamma=[]), "gamma"), (dict(tol=0.5), "tol"),
+    (dict(dv=0.05, until=0.03), "until"), (dict(nu=[0.3333, 0.33333]), "share the folder"),
+])
+def test_bad_values_are_refused_by_name(bad, named):
+    with pytest.raises(ValueError, match=named):
+        SweepSpec(**bad)
+
+
+def test_toml_file_gives_the_same_spec_as_keywords(tmp_path):
+    example = SweepSpec.from_toml(ROOT / "examples" / "sweep.toml")
+    assert example == SweepSpec(gamma=[271, 2333, 29160], nu=0.333, seeds=[0, 1], vertices=642,
+                                dv=0.019, until=0.5, c0_cycle=True, jiggle=0.01,
+                                bending="juelicher", method="newton")
+    # command-line values replace the file's, a mesh option replaces both mesh axes
+    small = SweepSpec.from_toml(ROOT / "examples" / "sweep.toml", icosphere=[3], until=[0.1])
+    assert small.vertices == () and small.icosphere == (3,) and small.until == (0.1,)
+    path = tmp_path / "bad.toml"
+    path.write_text("gamma = [271]\nvertexes = 642\n")
+    with pytest.raises(ValueError, match="vertexes"):
+        SweepSpec.from_toml(path)
+    path.write_text("gamma = [271\n")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        SweepSpec.from_toml(path)
+
+
+def test_pressure_drop_is_the_first_snap_through():
+    dv = np.arange(8) * 0.02
+    p = np.array([0.0, 5.0, 10.0, 15.0, 14.0, 6.0, 7.0, 2.0])  # 15 -> 14 is < 20 %, 14 -> 6 is not
+    assert pressure_drop_dV_over_V(pd.DataFrame({"dV_over_V": dv, "pressure": p})) == dv[5]
+    rising = pd.DataFrame({"dV_over_V": dv, "pressure": np.linspace(0, 10, 8)})
+    assert math.isnan(pressure_drop_dV_over_V(rising))
+
+
+def test_a_folder_name_never_changes_meaning(tmp_path):
+    spec = SweepSpec(gamma=271, icosphere=3)
+    (point,) = spec.points()
+    runs = {point["name"]: {k: v for k, v in point.items() if k != "name"}}
+    write_sweep_file(tmp_path / "s", spec.to_dict(), runs)
+    other = dict(runs[point["name"]], tol=1e-8)
+    with pytest.raises(ValueError, match="tol"):
+        write_sweep_file(tmp_path / "s", spec.to_dict(), {point["name"]: other})
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not a shellbuckle sweep"):
+        write_sweep_file(tmp_path / "t", spec.to_dict(), runs)
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["--gamma", "271,abc"], "'abc'"), (["--nu", "1.5"], "nu = 1.5"),
+    (["--seeds", "2-0"], "'2-0'"), (["--icosphere", "three"], "'three'"),
+    (["--method", "bfgs"], "'bfgs'"), (["--workers", "0"], "'0'"),
+    (["--scheduler", "no address"], "no address"), (["--dv", "0.05", "--until", "0.02"], "until"),
+    (["--config", "missing.toml"], "missing.toml"),
+])
+def test_cli_bad_input_exits_2_before_any_work(tmp_path, capsys, argv, named):
+    out = tmp_path / "sweep"
+    assert cli_main(["sweep", *argv, "--out", str(out)]) == 2
+    assert named in capsys.readouterr().err
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- one run, no Dask
+
+def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+
+    (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1).points()
+    folder = tmp_path / point["name"]
+    deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, out=folder,
+            max_steps=2)
+    before = {k: v for k, v in _file_states(folder).items() if k.startswith("steps")}
+    assert len(before) == 3
+    result = run_point(point, tmp_path, analyze=False)
+    assert result["outcome"] == "finished"
+    after = _file_states(folder)
+    assert all(after[k] == v for k, v in before.items())  # steps 0..2 kept, not recomputed
+    assert _folder_truth(folder)["steps"] == 5
+    again = run_point(point, tmp_path, analyze=False)
+    assert again["outcome"] == "skipped" and _file_states(folder) == after
+
+
+# --------------------------------------------------------------------------- Dask sweeps
+
+@pytest.fixture(scope="module")
+def reference_sweep(tmp_path_factory):
+    """The small sweep run without interruption on a 2-worker local cluster."""
+    out = tmp_path_factory.mktemp("reference") / "sweep"
+    catalogue = run_sweep(_small_spec(), out, workers=2, progress=False)
+    return out, catalogue
+
+
+def test_two_worker_sweep_catalogue_matches_the_run_folders(reference_sweep):
+    out, catalogue = reference_sweep
+    points = {p["name"]: p for p in _small_spec().points()}
+    assert list(catalogue["name"]) == list(points)
+    for _, row in catalogue.iterrows():
+        point = points[row["name"]]
+        if not _valid(point):
+            continue
+        truth = _folder_truth(out / row["name"])
+        assert row["status"] == truth["status"] == "finished"
+        assert row["message"] == truth["message"]
+        assert row["steps"] == truth["steps"] == truth["n_steps"] - 1 == 5
+        assert row["final_dV_over_V"] == truth["final_dV_over_V"]
+        assert row["gamma"] == truth["gamma"] and row["seed"] == truth["seed"]
+        assert row["wall_s"] == pytest.approx(truth["wall_s"], rel=1e-12)
+        assert row["stop_reason"] == "end of schedule"
+    # catalogue.csv holds the same table; regenerating it from the folders changes nothing
+    written = pd.read_csv(out / CATALOGUE_CSV)
+    assert list(written["name"]) == list(catalogue["name"])
+    np.testing.assert_array_equal(written["final_dV_over_V"].to_numpy(),
+                                  catalogue["final_dV_over_V"].to_numpy(dtype=float))
+    pd.testing.assert_frame_equal(Catalogue.load(out), catalogue)
+    assert json.loads((out / SWEEP_JSON).read_text())["runs"].keys() == points.keys()
+
+
+def test_a_failing_run_is_recorded_and_the_others_finish(reference_sweep):
+    out, catalogue = reference_sweep
+    failed = catalogue[catalogue["status"] == "failed"]
+    invalid = [name for name, p in ((p["name"], p) for p in _small_spec().points())
+               if not _valid(p)]
+    assert sorted(failed["name"]) == sorted(invalid)
+    assert (catalogue["status"] != "failed").sum() == 4
+    for _, row in failed.iterrows():
+        assert "schedule" in row["message"] and row["message"].startswith("ValueError")
+        assert "Traceback" in (out / row["traceback"]).read_text()
+        assert not (out / row["name"]).exists()
+
+
+def test_rerun_of_a_finished_sweep_touches_nothing(reference_sweep, capsys):
+    out, catalogue = reference_sweep
+    states = {p.name: _file_states(p) for p in out.iterdir() if (p / "run.json").exists()}
+    code = cli_main(["sweep", "--gamma", "271,2333", "--seeds", "0-1", "--icosphere", "3",
+                     "--until", "0.1,0.015", "--no-retry", "--quiet", "--out", str(out)])
+    assert code == 1  # the 4 recorded failures are reported
+    assert "finished 4, failed 4" in capsys.readouterr().out
+    assert {p.name: _file_states(p) for p in out.iterdir() if (p / "run.json").exists()} == states
+    pd.testing.assert_frame_equal(Catalogue.load(out), catalogue)
+
+
+_SWEEP_SCRIPT = textwrap.dedent("""
+    import sys
+    from shellbuckle.sweep import SweepSpec, run_sweep
+    spec = SweepSpec(**{small!r})
+    run_sweep(spec, sys.argv[1], workers=2, progress=False)
+""")
+
+
+def _status(out: Path, name: str):
+    path = out / name / "run.json"
+    return json.loads(path.read_text())["status"] if path.exists() else None
+
+
+def _sweep_done(out: Path, name: str) -> bool:
+    """The sweep's last attempt at the run ended with the run finished (and analysed)."""
+    path = out / "logs" / f"{name}.json"
+    if not path.exists():
+        return False
+    return json.loads(path.read_text())["attempts"][-1]["outcome"] == "finished"
+
+
+def test_killed_sweep_resumes_without_recomputing_finished_work(reference_sweep, tmp_path):
+    ref_out, ref_catalogue = reference_sweep
+    out = tmp_path / "sweep"
+    valid = [p["name"] for p in _small_spec().points() if _valid(p)]
+    proc = subprocess.Popen([sys.executable, "-c", _SWEEP_SCRIPT.format(small=SMALL), str(out)],
+                            start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and proc.poll() is None:
+            if any(_sweep_done(out, n) for n in valid):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the sweep ended before it could be killed"
+        os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its worker processes
+        proc.wait()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    finished = [n for n in valid if _sweep_done(out, n)]  # computed and analysed
+    started = [n for n in valid if (out / n / "steps").exists()]
+    assert finished and len(finished) < len(valid)
+    finished_files = {n: _file_states(out / n) for n in finished}
+    # steps stored before the kill (and, for a run that ended but was not analysed yet,
+    # run.json) are never rewritten
+    kept = {n: {k: v for k, v in _file_states(out / n).items()
+                if k.startswith("steps") or (k == "run.json" and _status(out, n) == "finished")}
+            for n in started if n not in finished}
+    attempts = {n: json.loads((out / "logs" / f"{n}.json").read_text())["attempts"]
+                for n in finished}
+
+    catalogue = run_sweep(_small_spec(), out, workers=2, progress=False)
+
+    for n in finished:  # not reopened, not recomputed, not even a new attempt
+        assert _file_states(out / n) == finished_files[n]
+        assert json.loads((out / "logs" / f"{n}.json").read_text())["attempts"] == attempts[n]
+    for n, files in kept.items():
+        now = _file_states(out / n)
+        assert all(now[k] == v for k, v in files.items())
+    pd.testing.assert_frame_equal(_results(catalogue), _results(ref_catalogue))
+    assert (catalogue["status"] == "finished").sum() == len(valid)
