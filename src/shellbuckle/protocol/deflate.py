@@ -32,6 +32,7 @@ from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..solve import minimize
 from ..solve.linear import make_solver
+from ..solve.newton import pinned_dofs
 from ..solve.pressure import minimize_at_pressure
 from .jiggle import jiggle, step_rng
 from .schedule import PAPER_DV, check_schedule, linear_schedule
@@ -181,7 +182,11 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None):
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
                                     max_iter=p.max_iter, solver=ctx.solver)
-    options = {"solver": ctx.solver} if p.method in ("newton", "alternate") else {}
+    options = {}
+    if p.method in ("newton", "alternate"):
+        # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
+        # the linear solver's symbolic analysis, stay the same from minimization to minimization
+        options = {"solver": ctx.solver, "pinned": pinned_dofs(ctx.mesh.X)}
     return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
                     max_iter=p.max_iter, **options)
 

@@ -93,66 +93,104 @@ def pinned_dofs(X: np.ndarray) -> np.ndarray:
     return np.sort(piv[:6])
 
 
+def _fixes_gauge(X: np.ndarray, pinned, max_cond: float = 1e3) -> bool:
+    """Whether the dofs ``pinned`` fix the rigid-motion gauge at ``X`` (six distinct valid
+    dofs on which the rigid modes are well conditioned)."""
+    pinned = np.asarray(pinned)
+    if pinned.shape != (6,) or len(np.unique(pinned)) != 6 or pinned.min() < 0 \
+            or pinned.max() >= X.size:
+        return False
+    return bool(np.linalg.cond(rigid_modes(X)[pinned]) <= max_cond)
+
+
 class KKTAssembler:
-    """Reduced KKT matrix ``[[K_ff + mu I, g_f], [g_f^T, 0]]`` over the free dofs ``f``, full
-    symmetric CSC storage with a pattern that stays fixed while the pattern of ``K`` does
-    (so the linear solver reuses its symbolic analysis)."""
+    """Upper triangle of the reduced KKT matrix ``[[sum_t c_t M_t + mu I, g], [g^T, 0]]`` over
+    the free dofs ``f``, from symmetric sparse terms ``M_t`` (the energy and volume Hessians).
+
+    The result is a CSR matrix (sorted indices, int32) whose pattern stays fixed while the
+    patterns of the terms do, so the linear solver reuses its symbolic analysis. The map from
+    every stored entry of every term to its slot in the result is computed once per pattern;
+    an assembly is then one scatter per term (no sparse sums, transposes or sorting).
+    """
 
     def __init__(self, free: np.ndarray, n_dofs: int):
         self.free = np.asarray(free)
         self.n = len(self.free)
+        self.n_dofs = int(n_dofs)
         self.new_index = np.full(n_dofs, -1, dtype=np.int64)
         self.new_index[self.free] = np.arange(self.n)
-        self._K_indptr = self._K_indices = None
+        self._keys = None
+        self._terms: list = []
 
-    def _analyse(self, K: sp.csr_matrix):
-        """Pattern and slots. ``K`` is symmetric with sorted indices, so its CSR rows are its
-        CSC columns; every column of the reduced KKT matrix is the kept part of a row of
-        ``K`` followed by one entry of ``g`` (row ``n``), and the last column holds ``g`` and
-        the zero corner. Missing diagonal entries of ``K`` (pruned zeros) are added."""
-        n, n_dofs = self.n, K.shape[0]
-        rows = np.repeat(np.arange(n_dofs), np.diff(K.indptr))
-        a, b = self.new_index[rows], self.new_index[K.indices]
-        self._keep = (a >= 0) & (b >= 0)
-        a, b = a[self._keep], b[self._keep]
-        diag = a == b
-        if np.count_nonzero(diag) != n:  # add the missing diagonal entries: rebuild sorted
-            a_all = np.concatenate([a, np.arange(n)])
-            b_all = np.concatenate([b, np.arange(n)])
-            unique, inverse = np.unique(a_all * n + b_all, return_inverse=True)
-            self._slot_K_src = inverse[:len(a)]
-            a, b = unique // n, unique % n
-            diag_pos = inverse[len(a_all) - n:]
-        else:
-            self._slot_K_src = np.arange(len(a))
-            diag_pos = np.flatnonzero(diag)
-        counts = np.bincount(a, minlength=n) + 1
-        self._indptr = np.zeros(n + 2, dtype=np.int32)
-        np.cumsum(np.append(counts, n + 1), out=self._indptr[1:])
-        self._nnz = int(self._indptr[-1])
-        entry_slot = np.arange(len(a)) + a  # one g entry closes every earlier column
-        self._slot_K = entry_slot[self._slot_K_src]
-        self._slot_diag = entry_slot[diag_pos]
-        self._slot_grow = self._indptr[1:n + 1] - 1
-        self._slot_gcol = self._indptr[n] + np.arange(n + 1)
-        self._indices = np.empty(self._nnz, dtype=np.int32)
-        self._indices[entry_slot] = b
-        self._indices[self._slot_grow] = n
-        self._indices[self._slot_gcol] = np.arange(n + 1)
-        self._K_indptr, self._K_indices = K.indptr.copy(), K.indices.copy()
+    def _term_keys(self, M: sp.csr_matrix):
+        """Positions of the kept (free, upper) entries of ``M`` and their pattern keys."""
+        rows = np.repeat(np.arange(self.n_dofs), np.diff(M.indptr))
+        a, b = self.new_index[rows], self.new_index[M.indices]
+        keep = np.flatnonzero((a >= 0) & (a <= b))
+        return keep, a[keep] * (self.n + 1) + b[keep]
 
-    def build(self, K: sp.csr_matrix, g: np.ndarray, mu: float) -> sp.csc_matrix:
-        if not (self._K_indptr is not None and len(K.indices) == len(self._K_indices)
-                and np.array_equal(K.indptr, self._K_indptr)
-                and np.array_equal(K.indices, self._K_indices)):
-            self._analyse(K)
-        gf = g.ravel()[self.free]
-        data = np.zeros(self._nnz)
-        data[self._slot_K] = K.data[self._keep]
-        data[self._slot_diag] += mu
-        data[self._slot_grow] = gf
-        data[self._slot_gcol[:-1]] = gf
-        return sp.csc_matrix((data, self._indices, self._indptr), shape=(self.n + 1, self.n + 1))
+    def _analyse(self, mats):
+        n = self.n
+        found = [self._term_keys(M) for M in mats]
+        if self._keys is None or not all(np.isin(keys, self._keys).all() for _, keys in found):
+            ar = np.arange(n + 1, dtype=np.int64)
+            fixed = [ar[:n] * (n + 1) + ar[:n], ar * (n + 1) + n]  # diagonal; g column, corner
+            self._keys = np.unique(np.concatenate(fixed + [keys for _, keys in found]))
+            rows = self._keys // (n + 1)
+            self._indices = (self._keys % (n + 1)).astype(np.int32)
+            self._indptr = np.zeros(n + 2, dtype=np.int32)
+            np.cumsum(np.bincount(rows, minlength=n + 1), out=self._indptr[1:])
+            self._slot_diag = np.searchsorted(self._keys, ar[:n] * (n + 1) + ar[:n])
+            self._slot_g = np.searchsorted(self._keys, ar[:n] * (n + 1) + n)
+        self._terms = [(M.indptr.copy(), M.indices.copy(), keep,
+                        np.searchsorted(self._keys, keys)) for M, (keep, keys) in zip(mats, found)]
+
+    def _same_patterns(self, mats) -> bool:
+        return len(mats) == len(self._terms) and all(
+            len(M.indices) == len(t[1]) and np.array_equal(M.indptr, t[0])
+            and np.array_equal(M.indices, t[1]) for M, t in zip(mats, self._terms))
+
+    def build(self, terms, g: np.ndarray) -> np.ndarray:
+        """Data array of the unshifted matrix. ``terms``: list of ``(M (3V, 3V) csr,
+        coefficient)``; ``g (V, 3)`` the constraint gradient."""
+        mats = [M if sp.issparse(M) and M.format == "csr" else sp.csr_matrix(M) for M, _ in terms]
+        for M in mats:
+            if not M.has_canonical_format:  # one slot per stored entry is assumed below
+                M.sum_duplicates()
+        if not self._same_patterns(mats):
+            self._analyse(mats)
+        data = np.zeros(len(self._keys))
+        for M, (coef, (_, _, keep, slot)) in zip(mats, zip([c for _, c in terms], self._terms)):
+            data[slot] += coef * M.data[keep]
+        data[self._slot_g] = g.ravel()[self.free]
+        return data
+
+    def diagonal(self, data: np.ndarray) -> np.ndarray:
+        """The diagonal of ``K_ff`` in a data array from :meth:`build`."""
+        return data[self._slot_diag]
+
+    def matrix(self, data: np.ndarray, mu: float = 0.0) -> sp.csr_matrix:
+        """The upper-triangular CSR matrix of ``data`` with ``mu`` added to ``K_ff``'s diagonal."""
+        if mu != 0.0:
+            data = data.copy()
+            data[self._slot_diag] += mu
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n + 1, self.n + 1))
+
+
+_KKT_CACHE: dict = {}
+_KKT_CACHE_SIZE = 4
+
+
+def kkt_assembler(free: np.ndarray, n_dofs: int) -> KKTAssembler:
+    """A :class:`KKTAssembler` for these free dofs, shared by successive minimizations (the
+    protocol's three per volume step) so that neither it nor the linear solver redoes its
+    pattern analysis; a few recent ones are kept."""
+    key = (int(n_dofs), np.asarray(free).tobytes())
+    kkt = _KKT_CACHE.pop(key, None) or KKTAssembler(free, n_dofs)
+    _KKT_CACHE[key] = kkt
+    while len(_KKT_CACHE) > _KKT_CACHE_SIZE:
+        _KKT_CACHE.pop(next(iter(_KKT_CACHE)))
+    return kkt
 
 
 def _max_displacement(p: np.ndarray) -> float:
@@ -174,7 +212,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            tol_energy: float = 1e-10, max_iter: int = 100, solver=None,
            project_rigid: bool = True, escape_saddles: bool = True,
            compute_inertia: bool = True, max_step: float | None = None,
-           inverse_iterations: int = 12, curvature_tol: float = 1e-8, seed: int = 0,
+           inverse_iterations: int = 12, curvature_tol: float = 1e-8,
+           inertia_step: float = 1e-4, pinned=None, seed: int = 0,
            history: bool = False) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
@@ -200,7 +239,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     escape_saddles : bool
         Shift and follow negative curvature, and refuse to stop at a saddle.
     compute_inertia : bool
-        Factor at the final point to report the inertia (always done when escaping saddles).
+        Report the inertia at the final point (always done when escaping saddles).
     max_step : float, optional
         Largest vertex displacement of one step (default ``0.2 R_eq``, with ``R_eq`` the radius
         of the sphere of volume ``V_target``).
@@ -209,6 +248,16 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     curvature_tol : float
         Eigenvalues of the tangent Hessian above ``-curvature_tol * mean|diag K|`` are treated
         as zero (marginal) when deciding whether a converged point is a saddle.
+    inertia_step : float
+        A final full Newton step no larger than ``inertia_step`` times the mean edge length
+        (largest vertex displacement) keeps the inertia of the factorization it came from;
+        see the module docstring. 0 refactors at every converged point.
+    pinned : (6,) int array, optional
+        The dofs that fix the rigid-motion gauge (default: :func:`pinned_dofs` at the start).
+        A caller that minimizes the same mesh many times passes one set (e.g. chosen on the
+        reference mesh) so that the KKT pattern, and the linear solver's symbolic analysis,
+        stay the same from call to call; it is used if the rigid modes restricted to it have a
+        condition number below 1e3 at the start, else a new set is chosen.
     seed : int
         Seed of the inverse-iteration start vector (results are reproducible).
     history : bool
@@ -218,148 +267,243 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     -------
     MinimizeResult
     """
-    clock = _Clock()
     t_start = time.perf_counter()
     X, V_target = check_problem(X0, V_target)
-    linsolver = make_solver(solver)
     X, verr = restore_volume(volume, X, V_target)
     if not verr <= 1e-12:
         raise ValueError(f"cannot bring X0 to V_target={V_target!r} along the volume gradient "
                          f"(relative volume error {verr:.1e})")
-    n_dofs = X.size
-    free = (np.setdiff1d(np.arange(n_dofs), pinned_dofs(X)) if project_rigid
-            else np.arange(n_dofs))
-    kkt = KKTAssembler(free, n_dofs)
     if max_step is None:
         max_step = 0.2 * (3.0 * V_target / (4.0 * np.pi)) ** (1.0 / 3.0)
+    nt = _Newton(energy, volume, V_target, make_solver(solver), X, project_rigid, pinned,
+                 np.random.default_rng(seed))
     edge = mean_edge_length(np.asarray(volume.faces), X)
-    rng = np.random.default_rng(seed)
-
-    def factor(K, g, mu):
-        with clock("assembly"):
-            A = kkt.build(K, g, mu)
-        with clock("factorization"):
-            try:
-                linsolver.factor(A)
-            except SingularFactorError:
-                return False, None
-        signs = linsolver.inertia()
-        return True, None if signs is None else signs[1] - 1
-
-    def solve(rhs_f, rhs_c=0.0):
-        with clock("solve"):
-            y = linsolver.solve(np.concatenate([rhs_f, [rhs_c]]))
-        out = np.zeros(n_dofs)
-        out[free] = y[:-1]
-        return out.reshape(-1, 3)
-
-    with clock("assembly"):
-        E = energy.value(X)
-    dE, mu_last, nit, records = None, 0.0, 0, []
-    success, message, inertia = False, "", None
+    want_inertia = compute_inertia or escape_saddles
+    E = nt.value(X)
+    dE, mu, nit, records = None, 0.0, 0, []
+    success, message, inertia, certified, retries = False, "", None, False, 0
     for k in range(max_iter + 1):
-        with clock("assembly"):
-            gE, gV = energy.gradient(X), volume.gradient(X)
-        lam, r = projected_gradient(gE, gV)
-        r_norm = float(np.linalg.norm(r))
-        grad_ok = r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad
-        converged = grad_ok and (dE is None or abs(dE) <= tol_energy * abs(E))
-        if converged and not (compute_inertia or escape_saddles):
-            success, message = True, "converged"
+        if retries == 0:  # a new iterate (a retry keeps the point and its Hessian)
+            lam, r, gE, gV = nt.gradients(X)
+            r_norm = float(np.linalg.norm(r))
+            grad_ok = r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad
+            converged = grad_ok and (dE is None or abs(dE) <= tol_energy * abs(E))
+            if converged and (not want_inertia or certified):
+                success, message = True, "converged"
+                inertia = 0 if certified else None
+                break
+            nt.assemble(X, lam, gV)
+            if grad_ok or k == max_iter:  # Newton's step, and the inertia at the point
+                mu = 0.0
+        shift = nt.factor_positive(mu, escape_saddles)
+        if shift is None:
+            message = "could not make the tangent Hessian positive definite by a shift"
             break
-        with clock("assembly"):
-            K = (energy.hessian(X) - lam * volume.hessian(X)).tocsr()
-            K.sort_indices()
-            diag_scale = float(np.abs(K.diagonal().ravel()[free]).mean()) or 1.0
-        factored, inertia = factor(K, gV, 0.0)
-        if converged and (not escape_saddles or inertia in (0, None)):
+        mu, inertia, indefinite = shift
+        if converged and (not escape_saddles or inertia == 0 or not indefinite):
             success, message = True, "converged"
             break
         if k == max_iter:
             message = f"maximum number of iterations ({max_iter}) reached"
             break
-        mu = 0.0
-        if not factored or (escape_saddles and inertia is not None and inertia > 0):
-            mu = max(mu_last / 3.0, 1e-8 * diag_scale) if mu_last > 0 else 1e-4 * diag_scale
-            grow = 8.0 if mu_last > 0 else 100.0
-            while True:
-                ok, shifted_inertia = factor(K, gV, mu)
-                if ok and shifted_inertia in (0, None):
-                    break
-                mu *= grow
-                if mu > 1e12 * diag_scale:
-                    break
-            if mu > 1e12 * diag_scale:
-                message = "could not make the tangent Hessian positive definite by a shift"
-                break
-            mu_last = mu
-        verr_now = (volume.value(X) - V_target)
-        s = solve(-r.ravel()[free], -verr_now)
-        slope_s = float(np.einsum("ij,ij->", r, s))
-        if not slope_s < 0:  # round-off at convergence, or unknown inertia: fall back to -r
-            s = -r / diag_scale
-            slope_s = -r_norm ** 2 / diag_scale
-
+        s, slope_s, curv_s = nt.step(r, volume.value(X) - V_target)
         d, curv_d = None, 0.0
-        if escape_saddles and inertia is not None and inertia > 0:
-            d, curv_d = _negative_curvature(solve, K, free, n_dofs, rng, inverse_iterations)
-            if curv_d >= -curvature_tol * diag_scale:
+        if escape_saddles and indefinite and (grad_ok or retries):
+            d, curv_d = nt.negative_curvature(inverse_iterations)
+            if curv_d >= -curvature_tol * nt.diag_scale:
                 d = None
                 if converged:
                     success = True
                     message = (f"converged; the tangent Hessian has {inertia} marginal negative "
                                f"eigenvalue(s) above -{curvature_tol:g} mean|diag K|")
                     break
-
-        with clock("line_search"):
-            step = _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d,
-                                max_step, edge, r_norm)
-        if step is None:
+        with nt.clock("line_search"):
+            found = _line_search(energy, volume, X, V_target, E, r, s, slope_s, curv_s, d,
+                                 curv_d, max_step, edge, r_norm, extend=mu > 0.0)
+        if found is None:
             if grad_ok:
                 success, message = True, "converged (no further decrease within round-off)"
-            else:
-                message = "line search failed to decrease the energy"
+                break
+            if retries < 3:  # same point and Hessian, stronger damping
+                retries += 1
+                mu = _damping_after(mu, curv_s, 1.0 / 16.0)
+                continue
+            message = "line search failed to decrease the energy"
             break
-        kind, alpha, E_new, X = step
-        dE, E = E_new - E, E_new
-        nit += 1
-        log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g",
-                  k, E, r_norm, lam, inertia, mu, kind, alpha)
+        kind, alpha, E_new, X_new, rho = found
+        certified = (kind == "newton" and alpha == 1.0 and mu == 0.0 and inertia == 0
+                     and _max_displacement(X_new - X) <= inertia_step * edge)
+        log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g "
+                  "rho=%.3g", k, E_new, r_norm, lam, inertia, mu, kind, alpha, rho)
         if history:
-            records.append(dict(iteration=k, energy=E, grad_norm=r_norm, lam=lam,
-                                inertia=inertia, mu=mu, step=kind, alpha=alpha))
+            records.append(dict(iteration=k, energy=E_new, grad_norm=r_norm, lam=lam,
+                                inertia=inertia, mu=mu, step=kind, alpha=alpha, rho=rho))
+        mu = _damping_next(mu, curv_s, s, kind, alpha, rho)
+        dE, E, X, retries = E_new - E, E_new, X_new, 0
+        nit += 1
 
-    clock.t["total"] = time.perf_counter() - t_start
+    nt.clock.t["total"] = time.perf_counter() - t_start
     volume_error = abs(volume.value(X) - V_target) / V_target
     log.info("newton: %s after %d iterations, E=%.15g, |r|=%.3e, pressure=%.9g, inertia=%s",
              message, nit, E, r_norm, -lam, inertia)
     return MinimizeResult(x=X, fun=E, grad_norm=r_norm, nit=nit, success=success,
                           message=message, pressure=-lam, volume_error=volume_error,
                           inertia=inertia, method="newton",
-                          history=records if history else None, timings=dict(clock.t))
+                          history=records if history else None, timings=dict(nt.clock.t))
 
 
-def _negative_curvature(solve, K, free, n_dofs, rng, n_iter):
-    """Direction of most negative curvature of the tangent Hessian by inverse iteration with
-    the current (positive definite on the tangent space) shifted factorization.
+def _damping_next(mu: float, curv_s: float, s: np.ndarray, kind: str, alpha: float,
+                  rho: float) -> float:
+    """Levenberg–Marquardt shift for the next iteration from the step just accepted.
 
-    Returns ``(d (V, 3), d . K d)`` with ``d`` tangent and of unit maximum vertex displacement.
+    ``rho`` is the ratio of the actual to the predicted decrease of the full step (Moré,
+    Lecture Notes in Math. 630, 105 (1978); Nocedal & Wright §4.1, §10.3). A step cut by the
+    line search to ``alpha < 1``, or stretched to ``alpha > 1`` (a damped step whose model
+    was good, see :func:`_line_search`), sets the shift that would have given that length
+    along the step's own direction; otherwise a good model (``rho > 0.75``) divides the shift
+    by 4 and a poor one (``rho < 0.25``) doubles the step's shifted curvature. A shift below
+    ``1e-3`` times the curvature along the step is dropped (pure Newton).
     """
-    v = rng.standard_normal(len(free))
-    d = None
-    for _ in range(n_iter):
-        d = solve(v)
-        v = d.ravel()[free]
-        v /= np.linalg.norm(v)
-    d /= _max_displacement(d)
-    curv = float(d.ravel() @ (K @ d.ravel()))
-    return d, curv
+    if kind != "newton" or not np.isfinite(rho):
+        return mu
+    if alpha != 1.0:
+        mu = _damping_after(mu, curv_s, alpha)
+    elif rho > 0.75:
+        mu = mu / 4.0
+    elif rho < 0.25:
+        mu = _damping_after(mu, curv_s, 0.5)
+    return 0.0 if mu <= 1e-3 * max(curv_s, 0.0) else mu
 
 
-def _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d, max_step, edge,
-                 r_norm):
+def _damping_after(mu: float, curv_s: float, factor: float) -> float:
+    """The shift that scales a step along its own direction by ``factor``: with
+    ``q = s.K s / s.s`` the curvature along the step (computed with shift ``mu``),
+    ``(q + mu) / (q + mu') = factor``. A shortening (``factor < 1``) at least doubles it."""
+    target = max(curv_s + mu, 0.0) / factor - curv_s
+    if factor < 1.0:
+        return float(max(target, 2.0 * mu, np.finfo(float).tiny))
+    return float(max(target, 0.0))
+
+
+class _Newton:
+    """Assembly, factorization and solves of one Newton minimization."""
+
+    def __init__(self, energy, volume, V_target, linsolver, X, project_rigid, pinned, rng):
+        self.energy, self.volume, self.V_target = energy, volume, V_target
+        self.linsolver, self.rng = linsolver, rng
+        self.n_dofs = X.size
+        self.free = np.arange(self.n_dofs)
+        if project_rigid:
+            if pinned is None or not _fixes_gauge(X, pinned):
+                pinned = pinned_dofs(X)
+            self.free = np.setdiff1d(self.free, pinned)
+        self.kkt = kkt_assembler(self.free, self.n_dofs)
+        self.clock = _Clock()
+        self.diag_scale = 1.0
+        self._terms = self._data = None
+
+    def value(self, X) -> float:
+        with self.clock("assembly"):
+            return self.energy.value(X)
+
+    def gradients(self, X):
+        with self.clock("assembly"):
+            gE, gV = self.energy.gradient(X), self.volume.gradient(X)
+        lam, r = projected_gradient(gE, gV)
+        return lam, r, gE, gV
+
+    def assemble(self, X, lam, gV):
+        """Hessian of the Lagrangian ``K = Hess E - lam Hess V`` (kept as its two terms)."""
+        with self.clock("assembly"):
+            HE, HV = self.energy.hessian(X), self.volume.hessian(X)
+            self._terms = [(HE, 1.0), (HV, -lam)]
+            self._data = self.kkt.build(self._terms, gV)
+            self.diag_scale = float(np.abs(self.kkt.diagonal(self._data)).mean()) or 1.0
+
+    def K_times(self, v: np.ndarray) -> np.ndarray:
+        v = v.ravel()
+        return sum(c * (M @ v) for M, c in self._terms)
+
+    def factor(self, mu: float):
+        """Factor the KKT matrix with shift ``mu``: ``(ok, n_neg of the tangent Hessian)``."""
+        A = self.kkt.matrix(self._data, mu)
+        with self.clock("factorization"):
+            try:
+                self.linsolver.factor(A, upper=True)
+            except SingularFactorError:
+                return False, None
+        signs = self.linsolver.inertia()
+        return True, None if signs is None else signs[1] - 1
+
+    def factor_positive(self, mu: float, escape_saddles: bool):
+        """Factor with shift ``mu``; if the tangent Hessian plus shift is not positive
+        definite (and saddles are escaped), raise the shift (x4) until it is.
+
+        Returns ``(mu, inertia, indefinite)``: ``inertia`` is the number of negative
+        eigenvalues of the tangent Hessian when ``mu = 0`` was factored (else ``None``) and
+        ``indefinite`` whether the tangent Hessian is known to have one; ``None`` if no
+        shift up to ``1e12 mean|diag K|`` works."""
+        ok, inertia = self.factor(mu)
+        if mu > 0.0:
+            inertia0, indefinite = None, not (ok and inertia in (0, None))
+        else:
+            inertia0, indefinite = inertia, bool(ok and inertia is not None and inertia > 0)
+        if ok and (not escape_saddles or inertia in (0, None)):
+            return mu, inertia0, indefinite
+        mu = 4.0 * mu if mu > 0.0 else 1e-4 * self.diag_scale
+        while mu <= 1e12 * self.diag_scale:
+            ok, inertia = self.factor(mu)
+            if ok and (not escape_saddles or inertia in (0, None)):
+                return mu, inertia0, indefinite
+            mu *= 4.0
+        return None
+
+    def solve(self, rhs_f, rhs_c=0.0) -> np.ndarray:
+        with self.clock("solve"):
+            y = self.linsolver.solve(np.concatenate([rhs_f, [rhs_c]]))
+        out = np.zeros(self.n_dofs)
+        out[self.free] = y[:-1]
+        return out.reshape(-1, 3)
+
+    def step(self, r, verr):
+        """Newton step ``s`` from the current factorization, its slope ``r.s`` and the
+        curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it."""
+        s = self.solve(-r.ravel()[self.free], -verr)
+        slope = float(np.einsum("ij,ij->", r, s))
+        if not slope < 0:  # round-off at convergence, or unknown inertia: fall back to -r
+            s = -r / self.diag_scale
+            slope = -float(np.einsum("ij,ij->", r, r)) / self.diag_scale
+        ss = float(np.einsum("ij,ij->", s, s))
+        curv = float(s.ravel() @ self.K_times(s)) / ss if ss > 0 else 0.0
+        return s, slope, curv
+
+    def negative_curvature(self, n_iter: int):
+        """Direction of most negative curvature of the tangent Hessian by inverse iteration
+        with the current (positive definite on the tangent space) shifted factorization.
+
+        Returns ``(d (V, 3), d . K d)`` with ``d`` tangent and of unit maximum vertex
+        displacement."""
+        v = self.rng.standard_normal(len(self.free))
+        d = None
+        for _ in range(n_iter):
+            d = self.solve(v)
+            v = d.ravel()[self.free]
+            v /= np.linalg.norm(v)
+        d /= _max_displacement(d)
+        return d, float(d.ravel() @ self.K_times(d))
+
+
+def _line_search(energy, volume, X, V_target, E, r, s, slope_s, curv_s, d, curv_d, max_step,
+                 edge, r_norm, extend=False):
     """Backtracking on the (shifted) Newton step and, if given, a curvature search along the
-    negative-curvature direction ``d``; returns ``(kind, alpha, E, X)`` of the lower energy.
+    negative-curvature direction ``d``; returns ``(kind, alpha, E, X, rho)`` of the lower
+    energy, ``rho`` the ratio of the actual to the predicted decrease (quadratic model
+    ``alpha r.s + alpha^2/2 s.K s``) of the Newton step at the accepted ``alpha``.
+
+    With ``extend`` (a damped step), a full step whose decrease is at least 0.9 of the
+    prediction is doubled while the energy keeps falling (at most three times, within
+    ``max_step``): in a soft valley the damped direction is right and only its length is
+    too short, and the length found sets the next shift.
 
     When the predicted decrease ``-r.s`` is below the energy's evaluation noise
     (``ENERGY_NOISE |E|``), a full step is accepted if the energy stays within that noise and
@@ -367,15 +511,32 @@ def _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d, max_s
     candidates = []
     alpha0 = min(1.0, max_step / max(_max_displacement(s), np.finfo(float).tiny))
     noise = ENERGY_NOISE * abs(E)
+    ss = float(np.einsum("ij,ij->", s, s))
+
+    def ratio(alpha, E1):
+        predicted = -(alpha * slope_s + 0.5 * alpha * alpha * curv_s * ss)
+        return (E - E1) / predicted if predicted > noise else np.nan
+
     if d is None and -slope_s <= noise:
         E1, X1 = RestoredPath(energy, volume, X, s, V_target)(alpha0)
         if X1 is not None and E1 <= E + noise:
             r1 = projected_gradient(energy.gradient(X1), volume.gradient(X1))[1]
             if np.linalg.norm(r1) < r_norm:
-                return "newton", alpha0, E1, X1
-    found = backtracking(RestoredPath(energy, volume, X, s, V_target), E, slope_s, alpha0)
+                return "newton", alpha0, E1, X1, np.nan
+    path = RestoredPath(energy, volume, X, s, V_target)
+    found = backtracking(path, E, slope_s, alpha0)
     if found is not None:
-        candidates.append(("newton",) + found)
+        alpha, E1, X1 = found
+        rho = ratio(alpha, E1)
+        if extend and alpha == 1.0 and rho > 0.9:
+            for _ in range(3):
+                if 2.0 * alpha * _max_displacement(s) > max_step:
+                    break
+                E2, X2 = path(2.0 * alpha)
+                if X2 is None or not E2 < E1 or E2 > E + 1e-4 * 2.0 * alpha * slope_s:
+                    break
+                alpha, E1, X1 = 2.0 * alpha, E2, X2
+        candidates.append(("newton", alpha, E1, X1, rho))
     if d is not None:
         slope_d = float(np.einsum("ij,ij->", r, d))
         if slope_d > 0 or (slope_d == 0 and d.ravel()[np.argmax(np.abs(d))] < 0):
@@ -384,7 +545,7 @@ def _line_search(energy, volume, X, V_target, E, r, s, slope_s, d, curv_d, max_s
         found = curvature_search(RestoredPath(energy, volume, X, d, V_target), E, slope_d,
                                  curv_d, min(length0, max_step), max_alpha=max_step)
         if found is not None:
-            candidates.append(("curvature",) + found)
+            candidates.append(("curvature",) + found + (np.nan,))
     if not candidates:
         return None
     return min(candidates, key=lambda c: c[2])

@@ -1,0 +1,153 @@
+"""Wall time of whole deflation runs with the paper's protocol, single thread.
+
+Run from the repository root:
+
+    python benchmarks/bench_deflation.py                     # gamma 271, 2333, 20995; 3594 vertices
+    python benchmarks/bench_deflation.py --gamma 2333 --until 0.1 --steps   # quick, per-step rows
+    python benchmarks/bench_deflation.py --gamma --large     # only the ~40k-vertex run
+
+For each gamma (nu = 1/3) it runs the paper's protocol (Quilliet et al. 2008, §4.1: steps of
+dV = 0.019 V0, jiggle, Newton at fixed volume, the c0 -> 0 -> 2/R cycle, stop at the first
+self-intersection or at ``--until``) on ``random_sphere(vertices, seed)`` and prints one row:
+number of steps, total wall time, time per step, Newton iterations per step (mean and max over
+steps, all three minimizations of a step summed), dV/V at primary buckling (the first step whose
+pressure is lower than the previous step's) and dV/V of the last step, and where the time went
+(assembly of energies and KKT matrices, factorizations, solves, line searches). ``--large``
+adds a run on a ~40k-vertex mesh with a few steps (``--large-until``) to show how the cost per
+step grows. Mesh construction is not counted (it is reported separately); the run is the
+protocol's ``init`` + ``step`` loop as ``shellbuckle deflate`` drives it, without the run store
+(which adds one small HDF5 write per step).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import platform  # noqa: E402
+import time  # noqa: E402
+from collections import defaultdict  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy  # noqa: E402
+
+from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
+from shellbuckle.params import ShellParameters  # noqa: E402
+from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
+from shellbuckle.protocol.deflate import Protocol  # noqa: E402
+
+PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
+TIMING_KEYS = ("assembly", "factorization", "solve", "line_search")
+
+
+class _Recorder:
+    """Wraps the protocol's minimizer call to collect the iteration counts and timings."""
+
+    def __init__(self):
+        self.inner = protocol_mod._minimize
+        self.timings = defaultdict(float)
+        self.n_min = 0
+        self.nit = []
+
+    def __call__(self, ctx, energy, X, V_target, *args, **kwargs):
+        result = self.inner(ctx, energy, X, V_target, *args, **kwargs)
+        self.n_min += 1
+        self.nit.append(result.nit)
+        for key, value in (result.timings or {}).items():
+            self.timings[key] += value
+        return result
+
+
+def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool) -> dict:
+    params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
+    protocol = Protocol.paper(dv=dv, until=until, seed=seed)
+    recorder = _Recorder()
+    protocol_mod._minimize = recorder
+    try:
+        t0 = time.perf_counter()
+        ctx, state = protocol_mod.init(mesh, params, protocol)
+        t_init = time.perf_counter() - t0
+        records = []
+        while state.stopped is None:
+            state, record = protocol_mod.step(ctx, state)
+            records.append(record)
+            if per_step:
+                print(f"    step {record['step']:3d}  dV/V={record['dV_over_V']:.4f}  "
+                      f"E={record['E_total']:.10g}  p={record['pressure']:.8g}  "
+                      f"it={record['iterations']:3d}  inertia={record['inertia']}  "
+                      f"conv={record['converged']}  {record['wall_s']:.2f} s", flush=True)
+        total = time.perf_counter() - t0
+    finally:
+        protocol_mod._minimize = recorder.inner
+    pressures = np.array([r["pressure"] for r in records])
+    drops = np.flatnonzero(np.diff(pressures) < 0)
+    its = np.array([r["iterations"] for r in records])
+    return dict(gamma=gamma, vertices=mesh.n_vertices, steps=len(records), total=total,
+                init=t_init, per_step=(total - t_init) / len(records), it_mean=its.mean(),
+                it_max=its.max(),
+                buckle=records[drops[0] + 1]["dV_over_V"] if len(drops) else float("nan"),
+                last=records[-1]["dV_over_V"], stopped=state.stopped,
+                unconverged=sum(not r["converged"] for r in records),
+                timings={k: recorder.timings.get(k, 0.0) for k in TIMING_KEYS})
+
+
+HEADER = (f"{'gamma':>7} {'vertices':>8} {'steps':>5} {'total s':>8} {'s/step':>7} "
+          f"{'it mean':>7} {'it max':>6} {'dV/V buckle':>11} {'dV/V stop':>9} "
+          f"{'unconv':>6}  assembly/factor/solve/linesearch s")
+
+
+def _row(r: dict) -> str:
+    t = r["timings"]
+    split = "/".join(f"{t[k]:.1f}" for k in TIMING_KEYS)
+    return (f"{r['gamma']:7g} {r['vertices']:8d} {r['steps']:5d} {r['total']:8.1f} "
+            f"{r['per_step']:7.2f} {r['it_mean']:7.1f} {r['it_max']:6d} {r['buckle']:11.3f} "
+            f"{r['last']:9.3f} {r['unconverged']:6d}  {split}")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--gamma", type=float, nargs="*", default=list(PAPER_GAMMAS),
+                        help="gammas of the 3594-vertex runs (default 271 2333 20995; none: skip)")
+    parser.add_argument("--vertices", type=int, default=3594, help="mesh size (default 3594)")
+    parser.add_argument("--until", type=float, default=0.95,
+                        help="last target dV/V (default 0.95: run to self-contact)")
+    parser.add_argument("--dv", type=float, default=0.019, help="volume step / V0 (default 0.019)")
+    parser.add_argument("--seed", type=int, default=0, help="mesh and jiggle seed (default 0)")
+    parser.add_argument("--steps", action="store_true", help="print one line per step")
+    parser.add_argument("--large", action="store_true", help="add the ~40k-vertex run")
+    parser.add_argument("--large-vertices", type=int, default=40000)
+    parser.add_argument("--large-gamma", type=float, default=2333.0)
+    parser.add_argument("--large-until", type=float, default=0.057,
+                        help="last target dV/V of the large run (default 0.057: 3 steps)")
+    args = parser.parse_args(argv)
+
+    print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
+          f"{platform.machine()}, one thread, load average {os.getloadavg()[0]:.2f}")
+    jobs = [(args.vertices, g, args.until) for g in args.gamma]
+    if args.large:
+        jobs.append((args.large_vertices, args.large_gamma, args.large_until))
+    meshes = {}
+    rows = []
+    for n, gamma, until in jobs:
+        if n not in meshes:
+            t = time.perf_counter()
+            meshes[n] = random_sphere(n, seed=args.seed)
+            print(f"random_sphere({n}, seed={args.seed}) built in {time.perf_counter() - t:.1f} s "
+                  "(not counted)", flush=True)
+        r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=args.seed,
+                    per_step=args.steps)
+        rows.append(r)
+        print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s "
+              f"(init {r['init']:.1f} s)", flush=True)
+    print()
+    print(HEADER)
+    for r in rows:
+        print(_row(r))
+    print(f"load average at the end {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
