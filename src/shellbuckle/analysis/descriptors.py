@@ -62,11 +62,12 @@ from ..energies.bending import Bending
 from ..mesh.topology import Topology
 from . import wrinkles
 
-#: A component of the inverted-curvature region (``H < 0``) is a dent when its area is at least
-#: ``pi (MIN_DENT_RADIUS R_area)^2``. Calibration (docs/analysis.md): spheres jiggled by up to
-#: 0.3 mean edge lengths and all pre-buckling steps of real runs have no vertex with ``H < 0``;
-#: after buckling the largest spurious component is below ``0.05 R`` while the smallest real
-#: dimple of the paper's "potato" shapes is above ``0.2 R``.
+#: A component of the inverted-curvature region (``H_smooth < 0``) is a dent when its area is at
+#: least ``pi (MIN_DENT_RADIUS R_area)^2``. Calibration (docs/analysis.md): spheres jiggled by up
+#: to 0.1 mean edge lengths and all pre-buckling steps of real runs have no vertex with
+#: ``H_smooth < 0``; at 0.3 edge lengths the largest inverted patch has an equivalent radius
+#: below 0.07 R; after buckling, the runs analysed so far have no inverted component besides
+#: the dent. Inverted caps are detected from a half-angle of 12 deg (3594 vertices).
 MIN_DENT_RADIUS = 0.1
 #: Before the sign of H is taken, H is smoothed (:meth:`Geometry.smooth`) over
 #: max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES h), h the mean edge length: the discrete
