@@ -10,7 +10,6 @@ from shellbuckle import theory
 from shellbuckle.analysis import analyze_run, events, thresholds
 from shellbuckle.analysis.events import PERSISTENCE, PRESSURE_DROP
 from shellbuckle.params import ShellParameters
-from shellbuckle.run import Run
 from shellbuckle.store import RunStore
 
 from test_analysis_classify import deflated_271, polygonal_profile, wrinkle_profile

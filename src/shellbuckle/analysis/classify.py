@@ -1,7 +1,9 @@
 """Classification of a conformation: sphere, dimples, capsule, polygonal, wrinkled, other.
 
 The classes follow Quilliet et al. (EPJE 27, 13 (2008), §4.2-4.4), decided from the
-descriptors of :mod:`.descriptors` and :mod:`.wrinkles`:
+descriptors of :mod:`.descriptors` and :mod:`.wrinkles`. The *rim* here is the outline of the
+depression (the zero line of the smoothed mean curvature around the dent), the curve on which
+the paper reads its secondary thresholds:
 
 ``sphere``
     no dent (no inverted-curvature region larger than the noise size).
@@ -23,7 +25,10 @@ descriptors of :mod:`.descriptors` and :mod:`.wrinkles`:
 
 The axisymmetry threshold is ``max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES h / rim_radius)``
 with ``h`` the mean edge length: the rim is located to a fraction of an edge, so the noise
-floor of the mode amplitudes scales as ``h / rim_radius`` (calibration in docs/analysis.md).
+floor of the mode amplitudes scales as ``h / rim_radius``. Calibration (docs/analysis.md): over
+inverted caps in random orientations on icosahedral and random meshes of 642 and 3594
+vertices the largest ``amplitude * rim_radius / h`` is 0.029, over the capsule steps of real
+runs 0.066.
 ``corners`` and ``W`` are 0 where they do not apply (``W`` counts wrinkles only on wrinkled
 rims, as the paper's Fig. 4 does).
 """

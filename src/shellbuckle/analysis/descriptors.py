@@ -10,10 +10,13 @@ Dents (inverted-curvature regions)
 ----------------------------------
 ``H_i`` is Jülicher's mean curvature (:class:`shellbuckle.energies.bending.Bending`,
 ``H = (c1 + c2) / 2``, ``1/R`` on a sphere, negative where the surface is concave seen from
-outside). The vertices with ``H_i < 0`` split into connected components on the edge graph of
-the mesh. A component is a *dent* when its area (sum of the vertex areas
-``A_i = 1/3 sum_{f at i} area_f``) is at least ``pi (MIN_DENT_RADIUS R_area)^2``; smaller
-components are curvature noise of the discretization. ``n_dimples`` is the number of dents.
+outside). A second derivative on a mesh is noisy at the vertex scale, so ``H`` is first
+smoothed over ``max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES h)`` (``h`` the mean edge
+length; :meth:`Geometry.smooth`). The vertices with ``H_smooth < 0`` split into connected
+components on the edge graph of the mesh. A component is a *dent* when its area (sum of the
+vertex areas ``A_i = 1/3 sum_{f at i} area_f``) is at least ``pi (MIN_DENT_RADIUS R_area)^2``;
+smaller components are curvature noise. Components lying mostly inside the bowl of a larger
+dent (:mod:`.wrinkles`) belong to it. ``n_dimples`` is the number of dents.
 
 Dent frame
 ----------
@@ -24,7 +27,7 @@ normal of the rim's plane, pointing out of the dent (from the body towards the o
 whatever the depth. (The line from the body's centroid to the dent's centroid, the obvious
 alternative, turns over for an inverted cap at alpha = 90 deg, i.e. dV/V = 1/2, where the two
 centroids coincide.) The frame origin ``o`` is on the dent's symmetry axis: first the
-area-weighted centroid of the dent, then the centroid of the area enclosed by the rim's
+area-weighted centroid of the dent, then the centroid of the area enclosed by the crest's
 projection (:mod:`.wrinkles`). ``z = (x - o) . u`` is the height along the axis.
 
 Dent depth
@@ -34,9 +37,10 @@ of the dent to the apex, along ``u``, of the sphere fitted by least squares to t
 outside the dent's bowl (the undented part of the shell). For an inverted spherical cap of
 half-angle ``alpha`` on a sphere of radius ``R`` (mirror buckling) this is the displacement of
 the pole, ``2 (1 - cos alpha) R``, the ``delta`` of Pogorelov's theory.
-``dent_sagitta``: the height of the mean rim plane (mean ``z`` of the rim curve) above the
-deepest point, ``(1 - cos alpha) R`` for the inverted cap. ``rim_radius``: the mean distance of
-the rim from the axis, ``sin(alpha) R`` for the inverted cap.
+``dent_sagitta``: the height of the mean crest plane (mean ``z`` of the crest, the ridge around
+the dent) above the deepest point, ``(1 - cos alpha) R`` for the inverted cap.
+``crest_radius``: the mean distance of the crest from the axis, ``sin(alpha) R`` for the
+inverted cap; ``rim_radius``: that of the outline of the depression (:mod:`.wrinkles`).
 
 Other descriptors
 -----------------
@@ -379,9 +383,9 @@ def describe(X, faces) -> dict:
     ``X (V, 3)`` positions, ``faces (F, 3)`` closed and outward oriented. Keys: ``area``,
     ``volume``, ``R_area``, ``asphericity``, ``gyration_eigenvalues``, ``n_dimples``,
     ``dimple_areas``, ``dent_axis``, ``dent_centre``, ``dent_depth``, ``dent_sagitta``,
-    ``rim_radius``, ``rim_height``, ``rim_spectrum`` (relative amplitudes of the modes
-    ``m = 1..20`` of the rim radius), ``rim_apices``, ``rim_concave_arcs``,
-    ``contact_distance``, ...
+    ``crest_radius``, ``crest_height``, ``crest_spectrum``, ``rim_radius``, ``rim_spectrum``
+    (relative amplitudes of the modes ``m = 1..20`` of the outline of the depression),
+    ``rim_apices``, ``rim_concave_arcs``, ``rim_arc_curvature``, ``contact_distance``, ...
     """
     X = np.asarray(X, dtype=np.float64)
     return ShapeAnalyzer(faces, n_vertices=len(X)).describe(X).as_dict()
