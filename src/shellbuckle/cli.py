@@ -490,13 +490,14 @@ def _register_classify(sub) -> None:
         if c.dent_axis is not None:
             axis = ", ".join(f"{v:+.4f}" for v in c.dent_axis)
             print(f"  dent depth  {c.dent_depth:.6g}   (indentation along the axis; sagitta below "
-                  f"the rim plane {c.dent_sagitta:.6g})")
+                  f"the crest {c.dent_sagitta:.6g})")
             print(f"  dent axis   ({axis})   (unit, pointing out of the dent)")
         if c.rim_spectrum is not None:
             top = sorted(range(2, len(c.rim_spectrum) + 1), key=lambda m: -c.rim_spectrum[m - 1])[:3]
             modes = ", ".join(f"m={m}: {c.rim_spectrum[m - 1]:.4f}" for m in top)
-            print(f"  rim radius  {c.rim_radius:.6g}   (strongest modes {modes}; axisymmetric "
-                  f"below {c.axisymmetry_threshold:.4f})")
+            print(f"  rim radius  {c.rim_radius:.6g}   (outline of the depression; strongest modes "
+                  f"{modes}; axisymmetric below {c.axisymmetry_threshold:.4f})")
+            print(f"  crest radius {c.crest_radius:.6g}   (the ridge around the dent)")
         print(f"  asphericity {c.asphericity:.6g}")
         if c.contact_distance == c.contact_distance:
             print(f"  self-contact distance {c.contact_distance:.6g}")
