@@ -213,8 +213,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            project_rigid: bool = True, escape_saddles: bool = True,
            compute_inertia: bool = True, max_step: float | None = None,
            inverse_iterations: int = 12, curvature_tol: float = 1e-8,
-           inertia_step: float = 1e-4, pinned=None, seed: int = 0,
-           history: bool = False) -> MinimizeResult:
+           inertia_step: float = 1e-4, max_quasi: int = 10, memory: int = 8, pinned=None,
+           seed: int = 0, history: bool = False) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
     Parameters
@@ -252,6 +252,10 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         A final full Newton step no larger than ``inertia_step`` times the mean edge length
         (largest vertex displacement) keeps the inertia of the factorization it came from;
         see the module docstring. 0 refactors at every converged point.
+    max_quasi, memory : int
+        At most ``max_quasi`` quasi-Newton steps reuse one factorization, with the last
+        ``memory`` secant pairs (see the module docstring); ``max_quasi = 0`` is plain
+        Newton (one factorization per step).
     pinned : (6,) int array, optional
         The dofs that fix the rigid-motion gauge (default: :func:`pinned_dofs` at the start).
         A caller that minimizes the same mesh many times passes one set (e.g. chosen on the
@@ -281,65 +285,91 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     want_inertia = compute_inertia or escape_saddles
     E = nt.value(X)
     dE, mu, nit, records = None, 0.0, 0, []
-    success, message, inertia, certified, retries = False, "", None, False, 0
+    success, message, inertia, retries = False, "", None, 0
+    fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
+    pairs, n_quasi, quasi_ok, previous, r_history = [], 0, False, None, []
+    need_gradient, hessian_fresh = True, False
     for k in range(max_iter + 1):
-        if retries == 0:  # a new iterate (a retry keeps the point and its Hessian)
+        if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
             r_norm = float(np.linalg.norm(r))
             grad_ok = r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad
             converged = grad_ok and (dE is None or abs(dE) <= tol_energy * abs(E))
-            if converged and (not want_inertia or certified):
+            if previous is not None:
+                _add_pair(pairs, X - previous[0], r - previous[1], memory)
+            r_history.append(r_norm)
+            need_gradient = False
+            if converged and (not want_inertia or _certified(fact, X, inertia_step * edge)):
                 success, message = True, "converged"
-                inertia = 0 if certified else None
+                inertia = 0 if want_inertia else None
                 break
-            nt.assemble(X, lam, gV)
-            if grad_ok or k == max_iter:  # Newton's step, and the inertia at the point
-                mu = 0.0
-        shift = nt.factor_positive(mu, escape_saddles)
-        if shift is None:
-            message = "could not make the tangent Hessian positive definite by a shift"
-            break
-        mu, inertia, indefinite = shift
-        if converged and (not escape_saddles or inertia == 0 or not indefinite):
-            success, message = True, "converged"
-            break
-        if k == max_iter:
-            message = f"maximum number of iterations ({max_iter}) reached"
-            break
-        s, slope_s, curv_s = nt.step(r, volume.value(X) - V_target)
-        d, curv_d = None, 0.0
-        if escape_saddles and indefinite and (grad_ok or retries):
-            d, curv_d = nt.negative_curvature(inverse_iterations)
-            if curv_d >= -curvature_tol * nt.diag_scale:
-                d = None
-                if converged:
-                    success = True
-                    message = (f"converged; the tangent Hessian has {inertia} marginal negative "
-                               f"eigenvalue(s) above -{curvature_tol:g} mean|diag K|")
-                    break
-        with nt.clock("line_search"):
-            found = _line_search(energy, volume, X, V_target, E, r, s, slope_s, curv_s, d,
-                                 curv_d, max_step, edge, r_norm, extend=mu > 0.0)
-        if found is None:
-            if grad_ok:
-                success, message = True, "converged (no further decrease within round-off)"
-                break
-            if retries < 3:  # same point and Hessian, stronger damping
-                retries += 1
-                mu = _damping_after(mu, curv_s, 1.0 / 16.0)
+        quasi = None
+        if (retries == 0 and quasi_ok and not converged and n_quasi < max_quasi
+                and k < max_iter and not _stalled(r_history)):
+            quasi = nt.quasi_newton_step(r, pairs, volume.value(X) - V_target)
+        if quasi is not None:
+            p, slope_p = quasi
+            with nt.clock("line_search"):
+                found = _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope_p, max_step)
+            if found is None:
+                quasi_ok = False
                 continue
-            message = "line search failed to decrease the energy"
-            break
-        kind, alpha, E_new, X_new, rho = found
-        certified = (kind == "newton" and alpha == 1.0 and mu == 0.0 and inertia == 0
-                     and _max_displacement(X_new - X) <= inertia_step * edge)
+            alpha, E_new, X_new = found
+            kind, rho = "quasi-newton", np.nan
+            quasi_ok = alpha >= 0.5
+            n_quasi += 1
+        else:
+            if not hessian_fresh:
+                nt.assemble(X, lam, gV)
+                hessian_fresh = True
+                if grad_ok or k == max_iter:  # Newton's step, and the inertia at the point
+                    mu = 0.0
+            shift = nt.factor_positive(mu, escape_saddles)
+            if shift is None:
+                message = "could not make the tangent Hessian positive definite by a shift"
+                break
+            mu, inertia, indefinite = shift
+            fact, pairs, n_quasi, quasi_ok, r_history = (X, mu, inertia), [], 0, True, [r_norm]
+            if converged and (not escape_saddles or inertia == 0 or not indefinite):
+                success, message = True, "converged"
+                break
+            if k == max_iter:
+                message = f"maximum number of iterations ({max_iter}) reached"
+                break
+            s, slope_s, curv_s = nt.step(r, volume.value(X) - V_target)
+            d, curv_d = None, 0.0
+            if escape_saddles and indefinite and (grad_ok or retries):
+                d, curv_d = nt.negative_curvature(inverse_iterations)
+                if curv_d >= -curvature_tol * nt.diag_scale:
+                    d = None
+                    if converged:
+                        success = True
+                        message = (f"converged; the tangent Hessian has {inertia} marginal "
+                                   f"negative eigenvalue(s) above -{curvature_tol:g} mean|diag K|")
+                        break
+            with nt.clock("line_search"):
+                found = _line_search(energy, volume, X, V_target, E, r, s, slope_s, curv_s, d,
+                                     curv_d, max_step, edge, r_norm, extend=mu > 0.0)
+            if found is None:
+                if grad_ok:
+                    success, message = True, "converged (no further decrease within round-off)"
+                    break
+                if retries < 3:  # same point and Hessian, stronger damping
+                    retries += 1
+                    mu = _damping_after(mu, curv_s, 1.0 / 16.0)
+                    continue
+                message = "line search failed to decrease the energy"
+                break
+            kind, alpha, E_new, X_new, rho = found
+            mu = _damping_next(mu, curv_s, kind, alpha, rho)
         log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g "
                   "rho=%.3g", k, E_new, r_norm, lam, inertia, mu, kind, alpha, rho)
         if history:
             records.append(dict(iteration=k, energy=E_new, grad_norm=r_norm, lam=lam,
                                 inertia=inertia, mu=mu, step=kind, alpha=alpha, rho=rho))
-        mu = _damping_next(mu, curv_s, s, kind, alpha, rho)
+        previous = (X, r) if kind != "curvature" else None
         dE, E, X, retries = E_new - E, E_new, X_new, 0
+        need_gradient, hessian_fresh = True, False
         nit += 1
 
     nt.clock.t["total"] = time.perf_counter() - t_start
@@ -352,8 +382,43 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                           history=records if history else None, timings=dict(nt.clock.t))
 
 
-def _damping_next(mu: float, curv_s: float, s: np.ndarray, kind: str, alpha: float,
-                  rho: float) -> float:
+def _certified(fact, X: np.ndarray, max_displacement: float) -> bool:
+    """Whether the inertia 0 of the last factorization (unshifted, at ``fact[0]``) holds at
+    ``X``: the points differ by at most ``max_displacement`` per vertex."""
+    return (fact is not None and fact[1] == 0.0 and fact[2] == 0
+            and _max_displacement(X - fact[0]) <= max_displacement)
+
+
+def _stalled(r_history: list, window: int = 3, ratio: float = 0.9) -> bool:
+    """The projected gradient has not fallen by ``ratio`` over the last ``window`` steps."""
+    return len(r_history) > window and r_history[-1] > ratio * r_history[-1 - window]
+
+
+def _add_pair(pairs: list, s: np.ndarray, y: np.ndarray, memory: int) -> None:
+    """Keep the secant pair ``(s, y, 1/s.y)`` if its curvature ``s.y`` is positive."""
+    s, y = s.ravel(), y.ravel()
+    sy = float(s @ y)
+    if memory > 0 and sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+        pairs.append((s, y, 1.0 / sy))
+        del pairs[:-memory]
+
+
+def _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step):
+    """Armijo backtracking along a quasi-Newton step ``p``; below the energy noise, the full
+    step is taken if the energy stays within the noise and the projected gradient falls."""
+    alpha0 = min(1.0, max_step / max(_max_displacement(p), np.finfo(float).tiny))
+    path = RestoredPath(energy, volume, X, p, V_target)
+    noise = ENERGY_NOISE * abs(E)
+    if -slope > noise:
+        return backtracking(path, E, slope, alpha0)
+    E1, X1 = path(alpha0)
+    if X1 is not None and E1 <= E + noise:
+        if np.linalg.norm(projected_gradient(energy.gradient(X1), volume.gradient(X1))[1]) < r_norm:
+            return alpha0, E1, X1
+    return None
+
+
+def _damping_next(mu: float, curv_s: float, kind: str, alpha: float, rho: float) -> float:
     """Levenberg–Marquardt shift for the next iteration from the step just accepted.
 
     ``rho`` is the ratio of the actual to the predicted decrease of the full step (Moré,
@@ -476,6 +541,24 @@ class _Newton:
         ss = float(np.einsum("ij,ij->", s, s))
         curv = float(s.ravel() @ self.K_times(s)) / ss if ss > 0 else 0.0
         return s, slope, curv
+
+    def quasi_newton_step(self, r, pairs, verr):
+        """L-BFGS step ``p = -H r`` (Nocedal & Wright, Algorithm 7.4) whose initial inverse
+        Hessian ``H0`` is the current factorization (the tangent KKT solve, exact at the point
+        where it was factored) and whose pairs are the steps taken since; ``(p, r.p)``, or
+        ``None`` if ``p`` is not a descent direction."""
+        q = -r.ravel()
+        coefficients = []
+        for s_i, y_i, rho_i in reversed(pairs):
+            a = rho_i * float(s_i @ q)
+            coefficients.append(a)
+            q = q - a * y_i
+        z = self.solve(q[self.free], -verr).ravel()
+        for (s_i, y_i, rho_i), a in zip(pairs, reversed(coefficients)):
+            z += (a - rho_i * float(y_i @ z)) * s_i
+        p = z.reshape(-1, 3)
+        slope = float(np.einsum("ij,ij->", r, p))
+        return (p, slope) if slope < 0 else None
 
     def negative_curvature(self, n_iter: int):
         """Direction of most negative curvature of the tangent Hessian by inverse iteration
