@@ -125,6 +125,24 @@ def test_separated_dimples_are_counted(kind, k):
     assert match.max(axis=1).min() > np.cos(np.radians(3))
 
 
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_depression_cut_by_a_circular_fold_counts_once(kind):
+    # a ring-shaped ridge of positive curvature on the floor of an inverted cap splits the
+    # inverted region into a disc and an annulus, both above the dent size: one depression
+    m = mesh(kind)
+    alpha = np.radians(70)
+    X = inverted_cap(m.X, alpha, (0, 0, 1.0))
+    floor = m.X[:, 2] > np.cos(alpha)
+    r = np.hypot(X[floor, 0], X[floor, 1])
+    X[floor, 2] += 0.15 * np.exp(-0.5 * ((r - 0.45) / 0.06) ** 2)
+    an = _analyzer(kind)
+    pieces = an.inverted_components(an.geometry(X))
+    assert len(pieces) == 2 and pieces[1].area > np.pi * (MIN_DENT_RADIUS ** 2)
+    d = an.describe(X)
+    assert d.n_dimples == 1
+    assert d.rim.crest.radius == pytest.approx(np.sin(alpha), abs=0.05)
+
+
 def test_dimples_below_the_noise_size_are_not_counted():
     # a cap much smaller than MIN_DENT_RADIUS R, with one well above it
     m = mesh("random")

@@ -15,8 +15,9 @@ smoothed over ``max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES h)`` (``h`` the
 length; :meth:`Geometry.smooth`). The vertices with ``H_smooth < 0`` split into connected
 components on the edge graph of the mesh. A component is a *dent* when its area (sum of the
 vertex areas ``A_i = 1/3 sum_{f at i} area_f``) is at least ``pi (MIN_DENT_RADIUS R_area)^2``;
-smaller components are curvature noise. Components lying mostly inside the bowl of a larger
-dent (:mod:`.wrinkles`) belong to it. ``n_dimples`` is the number of dents.
+smaller components are curvature noise. Components lying mostly inside a larger dent's
+depression (inside and below its crest, :mod:`.wrinkles`) belong to it, so a depression cut
+into pieces by folds counts once. ``n_dimples`` is the number of dents.
 
 Dent frame
 ----------
@@ -276,10 +277,12 @@ class ShapeAnalyzer:
     def dents(self, geom: Geometry, min_radius: float = MIN_DENT_RADIUS):
         """Dents of a conformation, largest first, and the rim of the largest (or ``None``).
 
-        Each component of ``H < 0`` with an area of at least ``pi (min_radius R_area)^2``
-        seeds a dent; the components (of any size) lying mostly (by area) inside the bowl of
-        a larger dent belong to it, so a depression cut by folds of positive curvature counts
-        once. Returns ``(dents, rim)``.
+        Each component of ``H_smooth < 0`` with an area of at least ``pi (min_radius R_area)^2``
+        seeds a dent; the components (of any size) lying mostly (by area) in a larger dent's
+        depression (inside and below its crest, facing out of it: :meth:`wrinkles.Rim.encloses`)
+        belong to it,
+        so a depression cut into pieces by folds of positive curvature counts once. Returns
+        ``(dents, rim)``.
         """
         remaining = self.inverted_components(geom)
         threshold = math.pi * (min_radius * geom.R_area) ** 2
@@ -288,8 +291,8 @@ class ShapeAnalyzer:
             seed = remaining.pop(0)
             rim = wrinkles.find_rim(geom, self.topology, seed, self.components)
             if rim is not None and remaining:
-                inside = [c for c in remaining
-                          if geom.vertex_area[c.vertices][rim.bowl[c.vertices]].sum() > 0.5 * c.area]
+                inside = [c for c in remaining if geom.vertex_area[c.vertices][rim.encloses(
+                    geom.X[c.vertices], geom.vertex_normal[c.vertices])].sum() > 0.5 * c.area]
                 if inside:
                     seed = _dent(geom, np.concatenate([seed.vertices] + [c.vertices for c in inside]))
                     remaining = [c for c in remaining if not any(c is i for i in inside)]

@@ -166,6 +166,28 @@ class Rim:
     crest: Curve
     outline: Curve
 
+    def cylindrical(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(rho, phi, z)`` of ``points (n, 3)`` in the dent frame (``phi`` in [0, 2 pi))."""
+        rel = np.asarray(points, dtype=np.float64) - self.origin
+        x, y, z = rel @ self.e1, rel @ self.e2, rel @ self.axis
+        return np.hypot(x, y), np.mod(np.arctan2(y, x), 2.0 * np.pi), z
+
+    def encloses(self, points, normals) -> np.ndarray:
+        """Whether each of ``points (n, 3)`` with unit outward ``normals (n, 3)`` is a point of
+        the depression's surface: inside the crest seen along the axis, below it
+        (``rho < rho_crest(phi)`` and ``z < z_crest(phi)``, the crest interpolated linearly in
+        ``phi``) and facing out of the dent (``n . axis > 0``; the far side of the shell,
+        also inside and below the crest, faces the other way)."""
+        rho, phi, z = self.cylindrical(points)
+        K = len(self.crest.phi)
+        t = phi / (2.0 * np.pi) * K
+        k = np.floor(t).astype(np.int64) % K
+        f = t - np.floor(t)
+        k1 = (k + 1) % K
+        rho_c = (1 - f) * self.crest.rho[k] + f * self.crest.rho[k1]
+        z_c = (1 - f) * self.crest.z[k] + f * self.crest.z[k1]
+        return (rho < rho_c) & (z < z_c) & (np.asarray(normals) @ self.axis > 0)
+
 
 def _basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.zeros(3)
@@ -195,9 +217,9 @@ def _envelope(A2, B2, zA, zB, phi):
     k = np.argmax(r, axis=1)
     rows = np.arange(len(phi))
     rho = r[rows, k]
-    tk = t[rows, k]
-    z = zA[k] + tk * (zB[k] - zA[k])
     missing = ~np.isfinite(rho)
+    tk = np.where(missing, 0.0, t[rows, k])
+    z = zA[k] + tk * (zB[k] - zA[k])
     rho[missing] = np.nan
     z[missing] = np.nan
     return rho, z
