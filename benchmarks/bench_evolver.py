@@ -4,7 +4,7 @@ Run from the repository root (Surface Evolver as ``evolver`` on the PATH, Debian
 ``evolver-nox``, or ``--evolver PATH``):
 
     python benchmarks/bench_evolver.py --vertices 642 --steps 5
-    python benchmarks/bench_evolver.py --vertices 3594 --steps 12          # across buckling
+    python benchmarks/bench_evolver.py --vertices 3594 --steps 13          # across buckling
     python benchmarks/bench_evolver.py --mesh icosphere --vertices 642 --c0-cycle --steps 3
     python benchmarks/bench_evolver.py --schedule 0.171 0.19 0.209 0.228   # jump near buckling
 
@@ -15,13 +15,15 @@ What it does:
    initial sphere (``form_factors``), ``A = gamma kappa / R^2``, ``kappa = 1``, ``c0 = 2/R``
    (Evolver ``h_zero = 1/R``), Poisson ratio ``nu``;
 2. runs Surface Evolver on that file, non-interactively (``evolver -x -f CMD FILE``, stdin
-   closed). For each step ``k`` it sets ``body[1].target := V0 (1 - dV/V_k)`` and minimizes
-   with the procedure ``relax`` (see ``EVOLVER_RELAX``): one ``g`` step (Lagrange multiplier
-   and projection onto the new volume), then Newton steps with ``hessian_normal off`` (all
-   three degrees of freedom of every vertex, as the stretching energy needs): ``hessian_seek``
-   (Newton direction plus line search) while far from the minimum, plain ``hessian`` once
-   the seek takes full steps, until a Newton step changes the energy by at most ``--etol``
-   relative; at a stationary point with ``eigenneg > 0`` (for example the symmetric branch
+   closed). Three vertices pin the rigid motions (``pin_rigid_motions``), as shellbuckle's
+   Newton pins six degrees of freedom. For each step ``k`` it sets
+   ``body[1].target := V0 (1 - dV/V_k)`` and minimizes with the procedure ``relax`` (see
+   ``EVOLVER_RELAX``): one ``g`` step (Lagrange multiplier, projection onto the new volume),
+   then Newton steps with ``hessian_normal off`` (all three degrees of freedom of every
+   vertex, as the stretching energy needs): ``hessian_seek`` (Newton direction plus a line
+   search) until it takes full steps where the Hessian is positive definite, then plain
+   ``hessian``, until ``1 + --confirm`` Newton steps in a row change the energy by at most
+   ``--etol`` relative; at a stationary point with ``eigenneg > 0`` (the symmetric branch
    past buckling) ``saddle`` steps down along the lowest eigenvector and Newton resumes.
    With ``--c0-cycle``: ``h_zero := 0``, relax, ``h_zero := 1/R``, relax (the paper's
    cycle). No jiggle. CPU time per step is Evolver's ``clock`` around the step, wall time is
@@ -42,9 +44,13 @@ Evolver's ``body[1].pressure`` is the Lagrange multiplier ``+dE/dV``. The table 
 ``-body[1].pressure`` in the column ``p_SE`` so that both columns use shellbuckle's sign.
 
 Before buckling both codes minimize the same function from the same state, so they reach
-the same minimum (energies to ~1e-10 relative or better, shapes to round-off). Past a
-buckling threshold the minimum each code finds depends on how it leaves the unstable
-symmetric branch, so different local minima are possible; the ``dx`` column shows it.
+the same minimum (energies to ~1e-13 relative, shapes to round-off). Where the buckled and
+the spherical states are both local minima (between the energy crossing and the classical
+threshold), and past the threshold, the minimum each code reaches depends on its path (line
+searches, how it leaves the unstable symmetric branch), so different local minima are
+possible; the ``dx`` column and the shape table (``shellbuckle.analysis.classify``: class,
+dents, dent depth, rim radius, angle between the two dent axes) show it.
+Measured results and their reading: ``docs/evolver_comparison.md``.
 
 ``--json FILE`` writes everything measured (both sides' per-step records, timings, versions).
 ``--keep DIR`` keeps the datafile, the generated command file, Evolver's output and both
@@ -87,14 +93,15 @@ EVOLVER_RELAX = r"""
 // relax(etol, confirm, maxit): minimize the energy at the current target volume.
 // One g step (Lagrange multiplier, projection onto the target volume), then Newton steps on
 // all vertex degrees of freedom (hessian_normal off): hessian_seek (Newton direction plus a
-// line search) far from the minimum; plain hessian once the seek takes (nearly) full steps
-// with a small energy change. Converged after 1 + confirm consecutive plain Newton steps that
-// each change the energy by at most etol relative, with no negative eigenvalue in the
-// factored Hessian (eigenneg = 0). The energy change of a Newton step is blind to a residual
-// gradient of ~1e-7 relative on a stiff shell; the confirming step removes it (quadratic
-// convergence). At a stationary point with eigenneg > 0, saddle moves down along the lowest
-// eigenvector; if that lowers the energy by less than etol relative (a rigid-motion zero mode
-// of the unpinned Hessian), the point is accepted.
+// line search) until a seek takes a full step (scale within 10 % of 1) from a point where
+// the factored Hessian is positive definite (eigenneg = 0), then plain hessian steps (back to
+// hessian_seek if one raises the energy). Plain Newton steps taken where the Hessian is
+// indefinite (near buckling) can throw the shell far away; the eigenneg test prevents that.
+// Converged after 1 + confirm consecutive plain Newton steps that each change the energy by
+// at most etol relative, with eigenneg = 0. (The energy change cannot see a relative
+// gradient residual of 1e-8; with confirm = 1 the residual ends near round-off.)
+// At a stationary point with eigenneg > 0, saddle moves down along the lowest eigenvector;
+// if that lowers the energy by less than etol relative (a zero mode), the point is accepted.
 procedure relax(real etol, integer confirm, integer maxit)
 {
   local e_old, de, polish, e_sad, small;
@@ -137,7 +144,8 @@ procedure relax(real etol, integer confirm, integer maxit)
           relax_local := relax_local + 1;
           if e_sad - total_energy <= etol*abs(total_energy) then polish := 1;
         } else polish := 1;
-      } else if last_hessian_scale > 0.9 and abs(de) <= 1e-6*abs(total_energy) then polish := 1;
+      } else if last_hessian_scale > 0.9 and last_hessian_scale < 1.1 and eigenneg == 0 then
+        polish := 1;
     };
   };
 }
@@ -202,11 +210,16 @@ def pin_rigid_motions(fe: Path, X: np.ndarray) -> tuple[int, int, int]:
 
 
 def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: float,
-                     confirm: int, maxit: int) -> str:
-    """The Evolver command file: the relax procedure and one block per volume step."""
+                     confirm: int, maxit: int, hessian_normal: bool = False) -> str:
+    """The Evolver command file: the relax procedure and one block per volume step.
+
+    ``hessian_normal=True`` keeps Evolver's default ``hessian_normal on`` (Newton steps only
+    along the vertex normals), which cannot relax the in-plane stretching: shown for reference.
+    """
     lines = ["// Generated by benchmarks/bench_evolver.py",
              "relax_newton := 0", "relax_saddles := 0", "relax_g := 0", "relax_ok := 0",
-             "relax_local := 0", EVOLVER_RELAX, "quiet on", "hessian_normal off", f"V0 := {V0!r}"]
+             "relax_local := 0", EVOLVER_RELAX, "quiet on",
+             f"hessian_normal {'on' if hessian_normal else 'off'}", f"V0 := {V0!r}"]
     fmt = " ".join(["%d", "%.17g"] + ["%.17g"] * 6 + ["%d"] * 5 + ["%.6f"])
     for k, target in enumerate(schedule, start=1):
         lines += [
@@ -406,6 +419,9 @@ def main(argv=None) -> int:
     ap.add_argument("--confirm", type=int, default=1,
                     help="Evolver: extra plain Newton steps after the energy test is met")
     ap.add_argument("--maxit", type=int, default=300, help="Evolver: Newton/saddle steps per relax")
+    ap.add_argument("--hessian-normal", action="store_true",
+                    help="Evolver: keep its default hessian_normal on (normal motion only; for "
+                         "reference, it cannot relax in-plane stretching)")
     ap.add_argument("--no-pin", action="store_true",
                     help="Evolver: do not pin the rigid motions (see pin_rigid_motions)")
     ap.add_argument("--evolver", default="evolver")
@@ -444,7 +460,7 @@ def main(argv=None) -> int:
         pinned = None if args.no_pin else pin_rigid_motions(fe, mesh.X)
         cmd = workdir / "protocol.cmd"
         cmd.write_text(evolver_commands(schedule, V0, 0.5 * c0, args.c0_cycle, args.etol,
-                                        args.confirm, args.maxit))
+                                        args.confirm, args.maxit, args.hessian_normal))
         print(f"# mesh: {args.mesh}, {mesh.n_vertices} vertices, {len(mesh.faces)} faces "
               f"(built in {t_mesh:.1f} s); gamma = {args.gamma:g}, nu = {args.nu:.6g}, kappa = 1, "
               f"c0 = 2/R; {len(schedule)} steps, c0 cycle {'on' if args.c0_cycle else 'off'}, "
@@ -533,7 +549,7 @@ def main(argv=None) -> int:
                "mesh": args.mesh, "vertices": mesh.n_vertices, "seed": args.seed,
                "gamma": args.gamma, "nu": args.nu, "schedule": schedule,
                "c0_cycle": args.c0_cycle, "tol_ours": args.tol, "etol_evolver": args.etol,
-               "confirm_evolver": args.confirm,
+               "confirm_evolver": args.confirm, "hessian_normal_evolver": args.hessian_normal,
                "pinned_evolver_ids": None if pinned is None else [v + 1 for v in pinned],
                "model_check_rel": model,
                "evolver": se["version"], "shellbuckle": source_version(),
