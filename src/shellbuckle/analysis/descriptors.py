@@ -212,13 +212,12 @@ class ShapeAnalyzer:
         self.bending = Bending.from_mesh(topology)
         self.contact = contact
         self._checker = None
-        V = topology.n_vertices
-        e = topology.edges
-        self._adjacency = sp.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
 
     # ------------------------------------------------------------------ geometry
 
     def geometry(self, X) -> Geometry:
+        """:class:`Geometry` of positions ``X (V, 3)`` (ValueError for a wrong shape or a
+        non-finite coordinate)."""
         X = np.asarray(X, dtype=np.float64)
         V = self.topology.n_vertices
         if X.shape != (V, 3):
@@ -263,7 +262,8 @@ class ShapeAnalyzer:
         return out
 
     def inverted_components(self, geom: Geometry) -> list:
-        """All connected components of ``H < 0`` as :class:`Dent` objects, largest first."""
+        """All connected components of ``H_smooth < 0`` as :class:`Dent` objects, largest
+        first (of any size)."""
         labels = self.components(geom.H_smooth < 0.0)
         if labels.max() < 0:
             return []
@@ -280,9 +280,8 @@ class ShapeAnalyzer:
         Each component of ``H_smooth < 0`` with an area of at least ``pi (min_radius R_area)^2``
         seeds a dent; the components (of any size) lying mostly (by area) in a larger dent's
         depression (inside and below its crest, facing out of it: :meth:`wrinkles.Rim.encloses`)
-        belong to it,
-        so a depression cut into pieces by folds of positive curvature counts once. Returns
-        ``(dents, rim)``.
+        belong to it, so a depression cut into pieces by folds of positive curvature counts
+        once. Returns ``(dents, rim)``.
         """
         remaining = self.inverted_components(geom)
         threshold = math.pi * (min_radius * geom.R_area) ** 2
