@@ -376,8 +376,9 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     if state == "done":
         return {"name": name, "outcome": "skipped", "status": "finished", "message": None,
                 "wall_s": 0.0}
-    t0 = time.perf_counter()
-    attempt = {"started": _now(), "ended": None, "wall_s": None, "host": socket.gethostname(),
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    attempt = {"started": _now(), "ended": None, "wall_s": None, "cpu_s": None,
+               "host": socket.gethostname(),
                "pid": os.getpid(), "worker": _worker_name(),
                "action": "analyze" if state == "analyze" else "deflate", "outcome": "running",
                "status": None, "message": None}
@@ -397,7 +398,8 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
         status, message, outcome = "failed", f"{type(exc).__name__}: {exc}", "failed"
         tb = _traceback.format_exc()
         log.warning("run %s failed: %s", name, message)
-    attempt.update(ended=_now(), wall_s=time.perf_counter() - t0, outcome=outcome,
+    attempt.update(ended=_now(), wall_s=time.perf_counter() - t0,
+                   cpu_s=time.process_time() - cpu0, outcome=outcome,
                    status=status, message=message)
     record_attempt(out_dir, name, attempt, replace_last=True, traceback=tb)
     return {"name": name, "outcome": outcome, "status": status, "message": message,

@@ -44,7 +44,9 @@ Columns (:data:`COLUMNS`):
 - ``final_shape``: the analysed shape of the last step;
 - ``wall_s``: sum of the per-step wall times stored in the run (minimization and measurement
   over all sessions); ``task_wall_s``: total wall time of the sweep's attempts at the run
-  (mesh building, setup, steps, writing, analysis), ``attempts``; ``traceback`` (relative path
+  (mesh building, setup, steps, writing, analysis) and ``task_cpu_s`` the CPU time of the
+  worker process during them (well below ``task_wall_s``: the worker shared its core with other
+  work), ``attempts``; ``traceback`` (relative path
   of the last failure's traceback file, if any).
 """
 
@@ -81,7 +83,7 @@ RESULT_COLUMNS = ("status", "message", "stop_reason", "steps", "final_dV_over_V"
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "primary_source",
                   "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
                   "W_mean", "W_std", "W_steps", "final_shape")
-TIME_COLUMNS = ("wall_s", "task_wall_s", "attempts")
+TIME_COLUMNS = ("wall_s", "task_wall_s", "task_cpu_s", "attempts")
 COLUMNS = ("name", *PARAMETER_COLUMNS, *RESULT_COLUMNS, *TIME_COLUMNS, "traceback", "path")
 #: Columns that depend on the machine and on interruptions, not on the runs' results.
 TIMING_COLUMNS = TIME_COLUMNS
@@ -283,7 +285,8 @@ def run_row(out_dir, name: str, point: dict) -> dict:
     last = attempts[-1] if attempts else {}
     row = {c: None for c in COLUMNS}
     row.update(name=name, path=name, attempts=len(attempts),
-               task_wall_s=float(sum(a.get("wall_s") or 0.0 for a in attempts)))
+               task_wall_s=float(sum(a.get("wall_s") or 0.0 for a in attempts)),
+               task_cpu_s=float(sum(a.get("cpu_s") or 0.0 for a in attempts)))
     if traceback_path(out_dir, name).exists():
         row["traceback"] = str(Path(LOGS_DIR) / traceback_path(out_dir, name).name)
     meta = None
@@ -379,7 +382,7 @@ class Catalogue:
 _INT_COLUMNS = ("seed", "n_vertices", "icosphere", "steps", "W_steps", "attempts")
 _FLOAT_COLUMNS = ("gamma", "nu", "dv", "until", "jiggle", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "axisymmetry_loss_dV_over_V",
-                  "wrinkles_dV_over_V", "W_mean", "W_std", "wall_s", "task_wall_s")
+                  "wrinkles_dV_over_V", "W_mean", "W_std", "wall_s", "task_wall_s", "task_cpu_s")
 _BOOL_COLUMNS = ("c0_cycle", "primary_confirmed")
 
 
