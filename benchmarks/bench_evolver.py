@@ -333,13 +333,14 @@ def run_ours(mesh, params, schedule, c0_cycle: bool, tol: float, out: Path) -> d
     return {"steps": steps, "total_cpu_s": cpu, "total_wall_s": wall}
 
 
-def kabsch_distance(A: np.ndarray, B: np.ndarray) -> float:
-    """Largest vertex distance between ``A`` and ``B`` after the best rotation + translation."""
+def kabsch(A: np.ndarray, B: np.ndarray) -> tuple[float, np.ndarray]:
+    """Best rotation ``R`` (``A @ R ~ B`` after centring, Kabsch) and the largest vertex
+    distance between the aligned ``A`` and ``B``."""
     a, b = A - A.mean(0), B - B.mean(0)
     U, _, Vt = np.linalg.svd(a.T @ b)
     d = np.sign(np.linalg.det(U @ Vt))
     R = U @ np.diag([1.0, 1.0, d]) @ Vt
-    return float(np.linalg.norm(a @ R - b, axis=1).max())
+    return float(np.linalg.norm(a @ R - b, axis=1).max()), R
 
 
 def check(energy: ShellEnergy, volume: Volume, X: np.ndarray) -> dict:
@@ -364,8 +365,9 @@ def source_version() -> str:
 
 
 def shape_rows(faces, se_steps, our_steps) -> list[dict] | None:
-    """Shape class, dents, dent depth and the angle between the two dent axes, per step
-    (``shellbuckle.analysis.classify``); ``None`` if that module cannot be imported."""
+    """Shape class, dents, dent depth and the angle between the two dent axes (after the
+    rigid alignment of the two conformations), per step (``shellbuckle.analysis.classify``);
+    ``None`` if that module cannot be imported."""
     try:
         from shellbuckle.analysis.classify import classify
     except ImportError as exc:
@@ -374,15 +376,17 @@ def shape_rows(faces, se_steps, our_steps) -> list[dict] | None:
     rows = []
     for e, o in zip(se_steps, our_steps):
         ce, co = classify(e["X"], faces), classify(o["X"], faces)
+        R = kabsch(e["X"], o["X"])[1]
+        rotation = math.degrees(math.acos(float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
         angle = math.nan
         if ce.dent_axis is not None and co.dent_axis is not None:
-            cos = float(np.clip(np.dot(ce.dent_axis, co.dent_axis), -1.0, 1.0))
+            cos = float(np.clip(np.dot(np.asarray(ce.dent_axis) @ R, co.dent_axis), -1.0, 1.0))
             angle = math.degrees(math.acos(cos))
         rows.append({"step": o["step"], "shape_SE": ce.shape, "shape_ours": co.shape,
                      "dents_SE": ce.n_dimples, "dents_ours": co.n_dimples,
                      "depth_SE": ce.dent_depth, "depth_ours": co.dent_depth,
                      "rim_SE": ce.rim_radius, "rim_ours": co.rim_radius,
-                     "axis_angle_deg": angle})
+                     "axis_angle_deg": angle, "rigid_rotation_deg": rotation})
     return rows
 
 
@@ -493,7 +497,7 @@ def main(argv=None) -> int:
             "it_SE": e["newton"] + e["saddles"] + e["g"], "saddles_SE": e["saddles"],
             "it_ours": o["iterations"], "neg_SE": e["eigenneg"], "neg_ours": o["inertia"],
             "res_SE": ce["residual"], "res_ours": co["residual"],
-            "E_SE_by_ours": ce["E"], "dx": kabsch_distance(e["X"], o["X"]),
+            "E_SE_by_ours": ce["E"], "dx": kabsch(e["X"], o["X"])[0],
             "cpu_SE": e["cpu_s"], "cpu_ours": o["cpu_s"],
             "wall_SE": e["wall_s"], "wall_ours": o["wall_s"],
             "converged_SE": bool(e["converged"]), "converged_ours": bool(o["converged"]),
@@ -515,8 +519,10 @@ def main(argv=None) -> int:
               f"{ratio:>6.2f} {r['wall_SE']:>7.2f} {r['wall_ours']:>7.2f}")
     shapes = shape_rows(mesh.faces, se["steps"], ours["steps"])
     if shapes:
+        print("# shapes (shellbuckle.analysis.classify); axes deg = angle between the dent axes "
+              "after rigid alignment; rot deg = rotation that aligns Evolver's conformation on ours")
         print(f"{'step':>4} {'shape SE':>10} {'shape ours':>10} {'dents':>5} {'depth SE':>9} "
-              f"{'depth ours':>10} {'rim SE':>7} {'rim ours':>8} {'axes deg':>10}")
+              f"{'depth ours':>10} {'rim SE':>7} {'rim ours':>8} {'axes deg':>8} {'rot deg':>7}")
         def num(value, width, digits):
             return f"{'-':>{width}}" if not np.isfinite(value) else f"{value:>{width}.{digits}f}"
 
@@ -524,7 +530,8 @@ def main(argv=None) -> int:
             print(f"{s['step']:>4d} {s['shape_SE']:>10} {s['shape_ours']:>10} "
                   f"{s['dents_SE']:>2d}/{s['dents_ours']:<2d} {num(s['depth_SE'], 9, 4)} "
                   f"{num(s['depth_ours'], 10, 4)} {num(s['rim_SE'], 7, 4)} "
-                  f"{num(s['rim_ours'], 8, 4)} {num(s['axis_angle_deg'], 10, 1)}")
+                  f"{num(s['rim_ours'], 8, 4)} {num(s['axis_angle_deg'], 8, 1)} "
+                  f"{num(s['rigid_rotation_deg'], 7, 2)}")
     model = max(abs(r["E_SE_by_ours"] - r["E_SE"]) / abs(r["E_SE"]) for r in rows)
     print(f"# same model: shellbuckle's energy of Evolver's conformations differs from Evolver's "
           f"total_energy by at most {model:.1e} relative")
