@@ -273,21 +273,23 @@ def test_killed_sweep_resumes_without_recomputing_finished_work(reference_sweep,
     ref_out, ref_catalogue = reference_sweep
     out = tmp_path / "sweep"
     valid = [p["name"] for p in _small_spec().points() if _valid(p)]
+    log = (tmp_path / "sweep.log").open("w")
     proc = subprocess.Popen([sys.executable, "-c", _SWEEP_SCRIPT.format(small=SMALL), str(out)],
-                            start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+                            start_new_session=True, stdout=log, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 240
         while time.monotonic() < deadline and proc.poll() is None:
             if any(_sweep_done(out, n) for n in valid):
                 break
             time.sleep(0.05)
-        assert proc.poll() is None, "the sweep ended before it could be killed"
+        assert proc.poll() is None, ("the sweep ended before it could be killed:\n"
+                                     + (tmp_path / "sweep.log").read_text()[-3000:])
         os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its worker processes
         proc.wait()
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
+        log.close()
     finished = [n for n in valid if _sweep_done(out, n)]  # computed and analysed
     started = [n for n in valid if (out / n / "steps").exists()]
     assert finished and len(finished) < len(valid)

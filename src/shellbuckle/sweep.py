@@ -365,7 +365,8 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
 
     The run folder is ``out_dir/<name>``. A finished (and analysed) run is left untouched.
     Returns ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of
-    ``skipped``, ``finished``, ``paused``, ``failed``; the attempt is logged in
+    ``skipped``, ``finished``, ``paused``, ``failed`` or ``analysis failed`` (the run is
+    finished, the classification of its steps raised; the next sweep retries it); the attempt is logged in
     ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This is the Dask
     task of :func:`run_sweep`; it also runs on its own.
     """
@@ -389,15 +390,20 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
 
         run = Run.open(folder) if state == "analyze" else _deflate(point, folder)
         status, message = run.status, run.store.meta.get("message")
-        if status == "finished" and analyze and _analysis_available():
-            from .analysis import analyze_run
-
-            analyze_run(run)
         outcome = "finished" if status == "finished" else "paused"
     except Exception as exc:  # recorded, the sweep goes on
         status, message, outcome = "failed", f"{type(exc).__name__}: {exc}", "failed"
         tb = _traceback.format_exc()
         log.warning("run %s failed: %s", name, message)
+    if outcome == "finished" and analyze and _analysis_available():
+        from .analysis import analyze_run
+
+        try:
+            analyze_run(run)
+        except Exception as exc:  # the run stands; the next sweep retries the analysis
+            outcome, message = "analysis failed", f"analysis: {type(exc).__name__}: {exc}"
+            tb = _traceback.format_exc()
+            log.warning("run %s: %s", name, message)
     attempt.update(ended=_now(), wall_s=time.perf_counter() - t0,
                    cpu_s=time.process_time() - cpu0, outcome=outcome,
                    status=status, message=message)

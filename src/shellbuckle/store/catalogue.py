@@ -47,7 +47,7 @@ Columns (:data:`COLUMNS`):
   (mesh building, setup, steps, writing, analysis) and ``task_cpu_s`` the CPU time of the
   worker process during them (well below ``task_wall_s``: the worker shared its core with other
   work), ``attempts``; ``traceback`` (relative path
-  of the last failure's traceback file, if any).
+  of the traceback file when the last attempt failed).
 """
 
 from __future__ import annotations
@@ -287,7 +287,8 @@ def run_row(out_dir, name: str, point: dict) -> dict:
     row.update(name=name, path=name, attempts=len(attempts),
                task_wall_s=float(sum(a.get("wall_s") or 0.0 for a in attempts)),
                task_cpu_s=float(sum(a.get("cpu_s") or 0.0 for a in attempts)))
-    if traceback_path(out_dir, name).exists():
+    if last.get("outcome") in ("failed", "analysis failed") and \
+            traceback_path(out_dir, name).exists():
         row["traceback"] = str(Path(LOGS_DIR) / traceback_path(out_dir, name).name)
     meta = None
     if (folder / RUN_JSON).exists():
