@@ -522,6 +522,23 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
 
 def _execute(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, progress,
              analyze, total) -> None:
+    import distributed  # noqa: F401  (its import sets the level of its loggers)
+
+    # Dask logs at INFO (cluster start and stop); show that only when shellbuckle logs at INFO
+    quiet = None if log.isEnabledFor(logging.INFO) else logging.getLogger("distributed")
+    level = quiet.level if quiet is not None else None
+    if quiet is not None:
+        quiet.setLevel(logging.WARNING)
+    try:
+        _gather(todo, out_dir, catalogue, scheduler=scheduler, workers=workers,
+                progress=progress, analyze=analyze, total=total)
+    finally:
+        if quiet is not None:
+            quiet.setLevel(level)
+
+
+def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, progress,
+            analyze, total) -> None:
     from distributed import as_completed
 
     client, owned = _client(scheduler, workers)
