@@ -99,7 +99,7 @@ EVOLVER_RELAX = r"""
 // indefinite (near buckling) can throw the shell far away; the eigenneg test prevents that.
 // Converged after 1 + confirm consecutive plain Newton steps that each change the energy by
 // at most etol relative, with eigenneg = 0. (The energy change cannot see a relative
-// gradient residual of 1e-8; with confirm = 1 the residual ends near round-off.)
+// gradient residual below ~1e-8; confirm = 1 takes the residual to round-off.)
 // At a stationary point with eigenneg > 0, saddle moves down along the lowest eigenvector;
 // if that lowers the energy by less than etol relative (a zero mode), the point is accepted.
 procedure relax(real etol, integer confirm, integer maxit)
@@ -420,8 +420,9 @@ def main(argv=None) -> int:
                     help="shellbuckle's relative projected-gradient tolerance (protocol default)")
     ap.add_argument("--etol", type=float, default=1e-10,
                     help="Evolver: stop when a Newton step changes the energy by <= etol |E|")
-    ap.add_argument("--confirm", type=int, default=1,
-                    help="Evolver: extra plain Newton steps after the energy test is met")
+    ap.add_argument("--confirm", type=int, default=0,
+                    help="Evolver: extra plain Newton steps after the energy test is met (0: "
+                         "residuals comparable to shellbuckle's tolerance; 1: near round-off)")
     ap.add_argument("--maxit", type=int, default=300, help="Evolver: Newton/saddle steps per relax")
     ap.add_argument("--hessian-normal", action="store_true",
                     help="Evolver: keep its default hessian_normal on (normal motion only; for "
