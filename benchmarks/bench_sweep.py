@@ -81,8 +81,8 @@ def main(argv=None) -> None:
     print(f"machine: {platform.machine()}, {default_workers()} cores, {platform.python_version()}, "
           f"dask {dask.__version__}, numpy {np.__version__}")
     header = (f"{'workers':>7} {'runs':>5} {'wall s':>8} {'startup s':>9} {'runs/h':>8} "
-              f"{'speedup':>8} {'efficiency':>10} {'task s/run':>10} {'cpu s/run':>9} {'cpu/wall':>8} "
-              f"{'steps s/run':>11} "
+              f"{'speedup':>8} {'efficiency':>10} {'task s/run':>10} {'cpu s/run':>9} "
+              f"{'cpu/wall':>8} {'steps s/run':>11} "
               f"{'load':>11}")
     results = []
     for w in args.workers:

@@ -366,9 +366,9 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     The run folder is ``out_dir/<name>``. A finished (and analysed) run is left untouched.
     Returns ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of
     ``skipped``, ``finished``, ``paused``, ``failed`` or ``analysis failed`` (the run is
-    finished, the classification of its steps raised; the next sweep retries it); the attempt is logged in
-    ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This is the Dask
-    task of :func:`run_sweep`; it also runs on its own.
+    finished, the classification of its steps raised; the next sweep retries it). The attempt
+    is logged in ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This
+    is the Dask task of :func:`run_sweep`; it also runs on its own.
     """
     out_dir = Path(out_dir)
     name = point["name"]
