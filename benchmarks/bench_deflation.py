@@ -9,14 +9,17 @@ Run from the repository root:
 For each gamma (nu = 1/3) it runs the paper's protocol (Quilliet et al. 2008, §4.1: steps of
 dV = 0.019 V0, jiggle, Newton at fixed volume, the c0 -> 0 -> 2/R cycle, stop at the first
 self-intersection or at ``--until``) on ``random_sphere(vertices, seed)`` and prints one row:
-number of steps, total wall time, time per step, Newton iterations per step (mean and max over
-steps, all three minimizations of a step summed), dV/V at primary buckling (the first step whose
-pressure is lower than the previous step's) and dV/V of the last step, and where the time went
-(assembly of energies and KKT matrices, factorizations, solves, line searches). ``--large``
-adds a run on a ~40k-vertex mesh with a few steps (``--large-until``) to show how the cost per
-step grows. Mesh construction is not counted (it is reported separately); the run is the
-protocol's ``init`` + ``step`` loop as ``shellbuckle deflate`` drives it, without the run store
-(which adds one small HDF5 write per step).
+number of steps; total wall time and CPU time of the process (the wall time is inflated when
+other jobs share the machine, the CPU time much less); wall time per step; minimizer
+iterations per step (Newton and quasi-Newton steps of the three minimizations of a step
+summed; mean and max over steps) and KKT factorizations per step (mean); dV/V at primary
+buckling (the first step whose pressure is lower than the previous step's) and dV/V of the
+last step; and where the time went (assembly of energies and KKT matrices, factorizations,
+solves, line searches). ``--large`` adds a run on a ~40k-vertex mesh with a few steps
+(``--large-until``) to show how the cost per step grows. Mesh construction is not counted
+(it is reported separately); the run is the protocol's ``init`` + ``step`` loop as
+``shellbuckle deflate`` drives it, without the run store (which adds one small HDF5 write per
+step).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUME
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
@@ -61,14 +65,32 @@ class _Recorder:
         return result
 
 
+class _CountingSolver:
+    """The run's linear solver, counting factorizations."""
+
+    def __init__(self, inner):
+        self.inner, self.n_factor = inner, 0
+
+    def factor(self, A, upper=False):
+        self.n_factor += 1
+        return self.inner.factor(A, upper=upper)
+
+    def solve(self, b):
+        return self.inner.solve(b)
+
+    def inertia(self):
+        return self.inner.inertia()
+
+
 def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool) -> dict:
     params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
     protocol = Protocol.paper(dv=dv, until=until, seed=seed)
     recorder = _Recorder()
     protocol_mod._minimize = recorder
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         ctx, state = protocol_mod.init(mesh, params, protocol)
+        ctx = dataclasses.replace(ctx, solver=_CountingSolver(ctx.solver))
         t_init = time.perf_counter() - t0
         records = []
         while state.stopped is None:
@@ -79,14 +101,15 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
                       f"E={record['E_total']:.10g}  p={record['pressure']:.8g}  "
                       f"it={record['iterations']:3d}  inertia={record['inertia']}  "
                       f"conv={record['converged']}  {record['wall_s']:.2f} s", flush=True)
-        total = time.perf_counter() - t0
+        total, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         protocol_mod._minimize = recorder.inner
     pressures = np.array([r["pressure"] for r in records])
     drops = np.flatnonzero(np.diff(pressures) < 0)
     its = np.array([r["iterations"] for r in records])
-    return dict(gamma=gamma, vertices=mesh.n_vertices, steps=len(records), total=total,
-                init=t_init, per_step=(total - t_init) / len(records), it_mean=its.mean(),
+    return dict(gamma=gamma, vertices=mesh.n_vertices, steps=len(records), total=total, cpu=cpu,
+                init=t_init, factor=ctx.solver.n_factor / len(records),
+                per_step=(total - t_init) / len(records), it_mean=its.mean(),
                 it_max=its.max(),
                 buckle=records[drops[0] + 1]["dV_over_V"] if len(drops) else float("nan"),
                 last=records[-1]["dV_over_V"], stopped=state.stopped,
@@ -94,16 +117,17 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
                 timings={k: recorder.timings.get(k, 0.0) for k in TIMING_KEYS})
 
 
-HEADER = (f"{'gamma':>7} {'vertices':>8} {'steps':>5} {'total s':>8} {'s/step':>7} "
-          f"{'it mean':>7} {'it max':>6} {'dV/V buckle':>11} {'dV/V stop':>9} "
+HEADER = (f"{'gamma':>7} {'vertices':>8} {'steps':>5} {'total s':>8} {'cpu s':>7} {'s/step':>7} "
+          f"{'it mean':>7} {'it max':>6} {'fact':>5} {'dV/V buckle':>11} {'dV/V stop':>9} "
           f"{'unconv':>6}  assembly/factor/solve/linesearch s")
 
 
 def _row(r: dict) -> str:
     t = r["timings"]
     split = "/".join(f"{t[k]:.1f}" for k in TIMING_KEYS)
-    return (f"{r['gamma']:7g} {r['vertices']:8d} {r['steps']:5d} {r['total']:8.1f} "
-            f"{r['per_step']:7.2f} {r['it_mean']:7.1f} {r['it_max']:6d} {r['buckle']:11.3f} "
+    return (f"{r['gamma']:7g} {r['vertices']:8d} {r['steps']:5d} {r['total']:8.1f} {r['cpu']:7.1f} "
+            f"{r['per_step']:7.2f} {r['it_mean']:7.1f} {r['it_max']:6d} {r['factor']:5.1f} "
+            f"{r['buckle']:11.3f} "
             f"{r['last']:9.3f} {r['unconverged']:6d}  {split}")
 
 
@@ -140,8 +164,8 @@ def main(argv=None) -> None:
         r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=args.seed,
                     per_step=args.steps)
         rows.append(r)
-        print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s "
-              f"(init {r['init']:.1f} s)", flush=True)
+        print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s wall, "
+              f"{r['cpu']:.1f} s CPU (init {r['init']:.1f} s)", flush=True)
     print()
     print(HEADER)
     for r in rows:

@@ -77,3 +77,16 @@ def test_make_solver():
         make_solver("umfpack")
     with pytest.raises(ValueError, match="lacks method"):
         make_solver(object())
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_upper_triangle_input_is_the_same_matrix(backend):
+    A = _random_symmetric(40, 3)
+    upper = sp.triu(A, format="csr")
+    upper.sort_indices()
+    full, half = backend(), backend()
+    full.factor(A)
+    half.factor(upper, upper=True)
+    assert half.inertia() == full.inertia()
+    b = np.random.default_rng(3).standard_normal(40)
+    np.testing.assert_allclose(A @ half.solve(b), b, atol=1e-10 * np.abs(b).max())

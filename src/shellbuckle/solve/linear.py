@@ -63,11 +63,16 @@ def _count_signs(d: np.ndarray) -> tuple[int, int, int]:
     return int((d > 0).sum()), int((d < 0).sum()), int((d == 0).sum())
 
 
+def _same_buffer(x: np.ndarray, y: np.ndarray) -> bool:
+    return x is y or (x.shape == y.shape and x.dtype == y.dtype and x.strides == y.strides
+                      and x.ctypes.data == y.ctypes.data)
+
+
 def _same_pattern(a, b) -> bool:
     if a is None or b is None or a.shape != b.shape or a.nnz != b.nnz:
         return False
-    if a.indptr is b.indptr and a.indices is b.indices:  # a fixed-pattern assembler's arrays
-        return True
+    if _same_buffer(a.indptr, b.indptr) and _same_buffer(a.indices, b.indices):
+        return True  # a fixed-pattern assembler's arrays (``b``, kept by the solver, is alive)
     return np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
 
 
