@@ -47,13 +47,19 @@ def _valid(point) -> bool:
 
 # --------------------------------------------------------------------------- oracles
 
-def _folder_truth(folder: Path) -> dict:
-    """Status, last step and last dV/V of a run folder, read with json and h5py only."""
-    meta = json.loads((folder / "run.json").read_text())
+def _records(folder: Path) -> list[dict]:
+    """The step records of a run folder, read with json and h5py only."""
     records = []
     for name in sorted(glob.glob(str(folder / "steps" / "step_*.h5"))):
         with h5py.File(name, "r") as f:
             records.append(json.loads(f.attrs["record_json"]))
+    return records
+
+
+def _folder_truth(folder: Path) -> dict:
+    """Status, last step and last dV/V of a run folder, read with json and h5py only."""
+    meta = json.loads((folder / "run.json").read_text())
+    records = _records(folder)
     return {"status": meta["status"], "message": meta["message"], "gamma": meta["params"]["gamma"],
             "seed": meta["protocol"]["seed"], "steps": records[-1]["step"],
             "final_dV_over_V": records[-1]["dV_over_V"], "n_steps": len(records),
@@ -222,6 +228,26 @@ def test_two_worker_sweep_catalogue_matches_the_run_folders(reference_sweep):
                                   catalogue["final_dV_over_V"].to_numpy(dtype=float))
     pd.testing.assert_frame_equal(Catalogue.load(out), catalogue)
     assert json.loads((out / SWEEP_JSON).read_text())["runs"].keys() == points.keys()
+
+
+def test_catalogue_thresholds_are_the_run_analysis_events(reference_sweep):
+    from shellbuckle.analysis import thresholds
+
+    out, catalogue = reference_sweep
+    for _, row in catalogue[catalogue["status"] == "finished"].iterrows():
+        found = thresholds(out / row["name"])  # the analysis stored in the run folder
+        assert row["primary_source"] == "analysis"
+        for column, event in (("primary_dV_over_V", "primary_buckling"),
+                              ("axisymmetry_loss_dV_over_V", "axisymmetry_loss"),
+                              ("wrinkles_dV_over_V", "wrinkles")):
+            assert row[column] == found[event] or (math.isnan(row[column])
+                                                   and math.isnan(found[event]))
+        # the pressure drop, recomputed from the step records
+        records = _records(out / row["name"])
+        drops = [b["dV_over_V"] for a, b in zip(records, records[1:])
+                 if a["pressure"] > 0 and b["pressure"] < 0.8 * a["pressure"]]
+        assert row["pressure_drop_dV_over_V"] == (drops[0] if drops else None) or (
+            not drops and math.isnan(row["pressure_drop_dV_over_V"]))
 
 
 def test_a_failing_run_is_recorded_and_the_others_finish(reference_sweep):
