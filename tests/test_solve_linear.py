@@ -90,3 +90,20 @@ def test_upper_triangle_input_is_the_same_matrix(backend):
     assert half.inertia() == full.inertia()
     b = np.random.default_rng(3).standard_normal(40)
     np.testing.assert_allclose(A @ half.solve(b), b, atol=1e-10 * np.abs(b).max())
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+@pytest.mark.parametrize("seed", range(3))
+def test_single_precision_pardiso_with_refinement(seed):
+    # oracle: dense eigenvalues (inertia) and the residual of the refined solution
+    A = _random_symmetric(60, seed) + 3.0 * sp.eye(60)
+    eig = np.linalg.eigvalsh(A.toarray())
+    solver = PardisoSolver(precision="single")
+    solver.factor(A.tocsc())
+    assert solver.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
+    b = np.random.default_rng(seed).standard_normal(60)
+    cond = np.abs(eig).max() / np.abs(eig).min()
+    residual = np.linalg.norm(A @ solver.solve(b) - b) / np.linalg.norm(b)
+    assert residual <= 1e-12 * cond ** 2 + 1e-13
+    with pytest.raises(ValueError, match="precision must be"):
+        PardisoSolver(precision="half")
