@@ -559,7 +559,8 @@ def main(argv=None) -> int:
           f"load average {os.getloadavg()[0]:.2f}")
 
     if args.json:
-        out = {"command": " ".join([Path(sys.argv[0]).as_posix()] + (argv or sys.argv[1:])),
+        out = {"command": " ".join(["python benchmarks/bench_evolver.py"]
+                                   + list(argv if argv is not None else sys.argv[1:])),
                "mesh": args.mesh, "vertices": mesh.n_vertices, "seed": args.seed,
                "gamma": args.gamma, "nu": args.nu, "schedule": schedule,
                "c0_cycle": args.c0_cycle, "tol_ours": args.tol, "etol_evolver": args.etol,
