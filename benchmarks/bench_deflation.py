@@ -73,7 +73,7 @@ class _CountingSolver:
 
     def factor(self, A, upper=False):
         self.n_factor += 1
-        return self.inner.factor(A, upper=upper)
+        return self.inner.factor(A, upper=True) if upper else self.inner.factor(A)
 
     def solve(self, b):
         return self.inner.solve(b)
