@@ -17,9 +17,20 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Buckling of thin elastic spherical shells under volume loss.")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for register in _COMMANDS:
+    for register in [*_COMMANDS, *_command_modules()]:
         register(sub)
     return parser
+
+
+def _command_modules():
+    """``register`` of every module in ``shellbuckle.commands`` (one sub-command each)."""
+    import importlib
+    import pkgutil
+
+    from shellbuckle import commands
+
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
+        yield importlib.import_module(f"shellbuckle.commands.{info.name}").register
 
 
 def _register_table(sub) -> None:
