@@ -15,7 +15,10 @@ from .classify import (RUN_COLUMNS, SHAPES, Classification, analyze_run, classif
                        classify_descriptors, classify_run)
 from .descriptors import Descriptors, ShapeAnalyzer, describe
 from .events import Event, events, thresholds
+from .fits import (PowerLawFit, critical_gamma, crossover, fit_power_law, gamma_at,
+                   wrinkle_average)
 
 __all__ = ["RUN_COLUMNS", "SHAPES", "Classification", "Descriptors", "Event", "ShapeAnalyzer",
            "analyze_run", "classify", "classify_descriptors", "classify_run", "describe",
-           "events", "thresholds"]
+           "events", "thresholds", "PowerLawFit", "critical_gamma", "crossover",
+           "fit_power_law", "gamma_at", "wrinkle_average"]
