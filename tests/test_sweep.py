@@ -111,6 +111,7 @@ def test_default_names_follow_the_paper_run():
     (dict(nu=1.0), "nu"), (dict(seeds=[0, -1]), "seed"), (dict(seeds=[0.5]), "seed"),
     (dict(vertices=3), "vertices"), (dict(icosphere=0), "icosphere"), (dict(dv=0), "dv"),
     (dict(dv=0.6), "dv"), (dict(until=0.995), "until"), (dict(jiggle=0.7), "jiggle"),
+    (dict(temperature=1.5), "temperature"),
     (dict(bending="helfrich"), "helfrich"), (dict(method="bfgs"), "bfgs"),
     (dict(c0_cycle="yes"), "c0_cycle"), (dict(gamma=[]), "gamma"), (dict(tol=0.5), "tol"),
     (dict(dv=0.05, until=0.03), "until"), (dict(nu=[0.3333, 0.33333]), "share the folder"),
@@ -123,7 +124,7 @@ def test_bad_values_are_refused_by_name(bad, named):
 def test_toml_file_gives_the_same_spec_as_keywords(tmp_path):
     example = SweepSpec.from_toml(ROOT / "examples" / "sweep.toml")
     assert example == SweepSpec(gamma=[271, 2333, 29160], nu=0.333, seeds=[0, 1], vertices=642,
-                                dv=0.019, until=0.5, c0_cycle=True, jiggle=0.01,
+                                dv=0.019, until=0.5, c0_cycle=True, temperature=0.05,
                                 bending="juelicher", method="newton")
     # command-line values replace the file's, a mesh option replaces both mesh axes
     small = SweepSpec.from_toml(ROOT / "examples" / "sweep.toml", icosphere=[3], until=[0.1])

@@ -234,8 +234,13 @@ def _register_deflate(sub) -> None:
                             "(units kappa/R^3), one per step, instead of a volume schedule")
     proto.add_argument("--no-c0-cycle", action="store_true",
                        help="skip the zero-spontaneous-curvature cycle (gives 'potato' shapes)")
-    proto.add_argument("--jiggle", type=float, default=0.01,
-                       help="jiggle amplitude, fraction of the mean edge length (default 0.01)")
+    proto.add_argument("--temperature", type=float,
+                       help="jiggle temperature on Surface Evolver's scale: displacements of std "
+                            "0.28 T times the size of the initial surface (default 0.05, as "
+                            "Surface Evolver: 0.028 R)")
+    proto.add_argument("--jiggle", type=float,
+                       help="jiggle amplitude as a fraction of the mean edge length, instead of "
+                            "--temperature")
     proto.add_argument("--bending", choices=["juelicher", "evolver"], default="juelicher",
                        help="bending discretization (default juelicher)")
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
@@ -281,8 +286,9 @@ def _cmd_deflate(args) -> int:
         except ValueError:
             raise ValueError(f"--pressures must be comma-separated numbers, got {args.pressures!r}") from None
     # refuse bad protocol options before any mesh is built
-    options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
-                   bending=args.bending, method=args.method, c0=args.c0)
+    options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
+                   temperature=args.temperature, seed=args.seed, bending=args.bending,
+                   method=args.method, c0=args.c0)
     if pressures is not None:
         Protocol(schedule=tuple(pressures), control="pressure", **options)
     elif schedule is None:
@@ -305,7 +311,8 @@ def _cmd_deflate(args) -> int:
                                  seed=args.seed, R=params.R)
     c0 = args.c0 if args.c0 is not None else from_file.get("c0")
     run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
-                  c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle, seed=args.seed,
+                  c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
+                  temperature=args.temperature, seed=args.seed,
                   bending=args.bending, method=args.method, c0=c0, out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
                   pressures=pressures)
@@ -334,7 +341,7 @@ def _cmd_continue(args) -> int:
     run = continue_from(parent, step, args.out, schedule=schedule,
                         dv=None if schedule else args.dv, until=None if schedule else args.until,
                         progress=not args.quiet, c0_cycle=not args.no_c0_cycle,
-                        jiggle=args.jiggle, seed=args.seed)
+                        jiggle=args.jiggle, temperature=args.temperature, seed=args.seed)
     return _report_run(run, plot=not args.no_plot)
 
 
@@ -599,7 +606,11 @@ def _register_sweep(sub) -> None:
                         help="icosahedral spheres of level N (10 N^2 + 2 vertices)")
     parser.add_argument("--dv", metavar="DV,..", help="volume steps / V0 in (0, 0.5] (default 0.019)")
     parser.add_argument("--until", metavar="U,..", help="last target dV/V in (0, 0.99) (default 0.95)")
-    parser.add_argument("--jiggle", metavar="J,..", help="jiggle amplitudes in [0, 0.5] (default 0.01)")
+    parser.add_argument("--temperature", metavar="T,..",
+                        help="jiggle temperatures (Surface Evolver's scale) in [0, 1] (default 0.05)")
+    parser.add_argument("--jiggle", metavar="J,..",
+                        help="jiggle amplitudes in [0, 0.5] of the mean edge length, instead of "
+                             "--temperature")
     parser.add_argument("--bending", metavar="B,..", help="bending models: juelicher, evolver")
     parser.add_argument("--method", metavar="M,..", help="minimizers: newton, alternate, cg, gd")
     parser.add_argument("--no-c0-cycle", action="store_true",
@@ -640,7 +651,8 @@ def _register_sweep(sub) -> None:
         from .sweep import SweepSpec, check_scheduler, run_sweep
 
         kinds = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
-                 "dv": float, "until": float, "jiggle": float, "bending": str, "method": str}
+                 "dv": float, "until": float, "jiggle": float, "temperature": float,
+                 "bending": str, "method": str}
         given = {name: values(f"--{name}", getattr(args, name), kind)
                  for name, kind in kinds.items() if getattr(args, name) is not None}
         if args.no_c0_cycle:

@@ -87,7 +87,7 @@ def default_out(params: ShellParameters, seed: int) -> Path:
 
 def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
-            jiggle: float = protocol_mod.DEFAULT_JIGGLE, seed: int = 0,
+            jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             stop_at_contact: bool = True, c0: float | None = None, out=None,
             progress: bool = False, max_steps: int | None = None,
@@ -102,14 +102,15 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``pressures`` (a list of external overpressures, units kappa/R^3) switches to pressure
     control: each step minimizes ``E + p V`` at free volume.
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
-    instead of the initial mesh.
+    instead of the initial mesh. The jiggle is Surface Evolver's at ``temperature`` (default
+    0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length; give at most one.
     """
     from .mesh.random_sphere import random_sphere
 
     params = params or ShellParameters.from_gamma(2333.0, nu=1.0 / 3.0)
     mesh = mesh or random_sphere(3594, seed=seed)
-    options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, seed=seed, bending=bending,
-                   method=method, tol=tol, stop_at_contact=stop_at_contact)
+    options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
+                   bending=bending, method=method, tol=tol, stop_at_contact=stop_at_contact)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
@@ -151,7 +152,14 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
         from .protocol.schedule import linear_schedule
 
         schedule = linear_schedule(dv, until, start=start)
+    # a jiggle option left at None keeps the parent's; one given replaces the parent's other one
+    options = {k: v for k, v in options.items()
+               if not (k in ("jiggle", "temperature") and v is None)}
     fields = base.to_dict() | options | {"schedule": list(np.atleast_1d(schedule))}
+    if "jiggle" in options and "temperature" not in options:
+        fields["temperature"] = None
+    elif "temperature" in options and "jiggle" not in options:
+        fields["jiggle"] = None
     protocol = Protocol.from_dict(fields)
     store = parent.store.branch(out, step, protocol=protocol.to_dict())
     mesh = Mesh.from_arrays(store.X0, store.faces)

@@ -43,7 +43,7 @@ import traceback as _traceback
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from .protocol.deflate import DEFAULT_JIGGLE, METHODS
+from .protocol.deflate import DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
                               write_sweep_file)
@@ -119,7 +119,9 @@ class SweepSpec:
       Both may be given; with neither, the paper's randomized sphere of 3594 vertices;
     - protocol (:func:`shellbuckle.run.deflate`): ``dv`` (volume step / V0, in (0, 0.5];
       default 0.019), ``until`` (last target dV/V, in (0, 0.99); default 0.95), ``c0_cycle``
-      (booleans; default True), ``jiggle`` (in [0, 0.5]; default 0.01), ``bending``
+      (booleans; default True), ``temperature`` (jiggle on Surface Evolver's scale, in
+      [0, 1]; default 0.05), ``jiggle`` (jiggle as a fraction of the mean edge length, in
+      [0, 0.5], replacing the temperature for those runs; default none), ``bending``
       (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``).
 
     ``tol`` (minimizer tolerance) and ``stop_at_contact`` are the same for every run. Each value
@@ -135,7 +137,8 @@ class SweepSpec:
     dv: tuple = (PAPER_DV,)
     until: tuple = (0.95,)
     c0_cycle: tuple = (True,)
-    jiggle: tuple = (DEFAULT_JIGGLE,)
+    jiggle: tuple = (None,)
+    temperature: tuple = (DEFAULT_TEMPERATURE,)
     bending: tuple = ("juelicher",)
     method: tuple = ("newton",)
     tol: float = 1e-9
@@ -161,9 +164,13 @@ class SweepSpec:
         put("until", tuple(_real("until", u, 0.0, MAX_DV_OVER_V,
                                  allowed=f"0 < until < {MAX_DV_OVER_V}")
                            for u in _values("until", self.until)))
-        put("jiggle", tuple(_real("jiggle", j, 0.0, 0.5, low_open=False, high_open=False,
+        put("jiggle", tuple(None if j is None else
+                            _real("jiggle", j, 0.0, 0.5, low_open=False, high_open=False,
                                   allowed="0 <= jiggle <= 0.5")
                             for j in _values("jiggle", self.jiggle)))
+        put("temperature", tuple(_real("temperature", t, 0.0, 1.0, low_open=False,
+                                       high_open=False, allowed="0 <= temperature <= 1")
+                                 for t in _values("temperature", self.temperature)))
         cycles = _values("c0_cycle", self.c0_cycle)
         if not all(isinstance(c, bool) for c in cycles):
             raise ValueError(f"c0_cycle must be true or false, got {list(cycles)!r}")
@@ -238,13 +245,17 @@ class SweepSpec:
         """Every run of the grid: a dict of its parameters with its ``name`` (see
         :func:`run_name`), in grid order (gamma slowest, method fastest)."""
         out, names = [], {}
-        for gamma, nu, (mesh, n), seed, dv, until, cycle, jig, bend, method in itertools.product(
-                self.gamma, self.nu, self.meshes(), self.seeds, self.dv, self.until,
-                self.c0_cycle, self.jiggle, self.bending, self.method):
+        # a jiggle amplitude replaces the temperature; None in ``jiggle`` means "by temperature"
+        jiggles = [(None, t) for t in self.temperature if None in self.jiggle] + \
+                  [(j, None) for j in self.jiggle if j is not None]
+        for gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp), bend, method in \
+                itertools.product(self.gamma, self.nu, self.meshes(), self.seeds, self.dv,
+                                  self.until, self.c0_cycle, jiggles, self.bending, self.method):
             point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
                      "n_vertices": n if mesh == "random" else 10 * n * n + 2,
                      "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
-                     "c0_cycle": cycle, "jiggle": jig, "bending": bend, "method": method,
+                     "c0_cycle": cycle, "jiggle": jig, "temperature": temp, "bending": bend,
+                     "method": method,
                      "tol": self.tol, "stop_at_contact": self.stop_at_contact}
             name = run_name(point)
             if name in names:
@@ -262,7 +273,7 @@ class SweepSpec:
 def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
-    ``_noc0``, ``_j<jiggle>``, ``_<bending>``, ``_<method>``), e.g. ``g2333_nu0.333_v3594_s0``
+    ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>``, ``_<bending>``, ``_<method>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
     mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
@@ -273,8 +284,10 @@ def run_name(point: dict) -> str:
         name += f"_until{_fmt(point['until'])}"
     if not point["c0_cycle"]:
         name += "_noc0"
-    if point["jiggle"] != DEFAULT_JIGGLE:
+    if point.get("jiggle") is not None:
         name += f"_j{_fmt(point['jiggle'])}"
+    elif point.get("temperature", DEFAULT_TEMPERATURE) != DEFAULT_TEMPERATURE:
+        name += f"_T{_fmt(point['temperature'])}"
     if point["bending"] != "juelicher":
         name += f"_{point['bending']}"
     if point["method"] != "newton":
@@ -332,6 +345,7 @@ def _deflate(point: dict, folder: Path):
         try:
             return deflate(mesh, params, dv=point["dv"], until=point["until"],
                            c0_cycle=point["c0_cycle"], jiggle=point["jiggle"],
+                           temperature=point.get("temperature"),
                            seed=point["seed"], bending=point["bending"], method=point["method"],
                            tol=point["tol"], stop_at_contact=point["stop_at_contact"],
                            out=folder, progress=False)

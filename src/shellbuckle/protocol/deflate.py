@@ -34,7 +34,8 @@ from ..solve import minimize
 from ..solve.linear import make_solver
 from ..solve.newton import pinned_dofs
 from ..solve.pressure import minimize_at_pressure
-from .jiggle import jiggle, step_rng
+from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
+                     step_rng)
 from .schedule import PAPER_DV, check_schedule, linear_schedule
 
 log = logging.getLogger(__name__)
@@ -42,8 +43,9 @@ log = logging.getLogger(__name__)
 METHODS = ("newton", "alternate", "cg", "gd")
 CONTROLS = ("volume", "pressure")
 
-DEFAULT_JIGGLE = 0.01
-"""Default jiggle: Gaussian displacements of 1 % of the mean edge length per coordinate."""
+DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
+"""Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate
+(the paper's runs were made with Surface Evolver's jiggle; see :mod:`.jiggle`)."""
 
 
 @dataclass(frozen=True)
@@ -54,8 +56,10 @@ class Protocol:
     with ``control = "pressure"``, the external overpressure p of each step (units kappa/R^3;
     positive compresses): the shell then minimizes ``E + p V`` at free volume.
     ``c0``: spontaneous curvature (c = c1 + c2), None for the stress-free ``2/R``.
-    ``c0_cycle``: the paper's zero-curvature cycle at each step. ``jiggle``: amplitude as a
-    fraction of the mean edge length. ``method``: minimizer (``newton``, ``alternate`` = CG
+    ``c0_cycle``: the paper's zero-curvature cycle at each step. The jiggle is set by
+    ``temperature`` (Surface Evolver's scale: sigma = 0.28 T overall_size, 0.028 R at the
+    default T = 0.05) or by ``jiggle`` (sigma as a fraction of the mean edge length), not both;
+    with neither, ``temperature = 0.05``. ``method``: minimizer (``newton``, ``alternate`` = CG
     then Newton as in the paper, ``cg``, ``gd``). ``stop_at_contact``: stop when the surface
     intersects itself. ``tol``: relative projected-gradient tolerance of the minimizer.
     """
@@ -63,7 +67,8 @@ class Protocol:
     schedule: tuple
     c0: float | None = None
     c0_cycle: bool = True
-    jiggle: float = DEFAULT_JIGGLE
+    jiggle: float | None = None
+    temperature: float | None = None
     seed: int = 0
     bending: str = "juelicher"
     method: str = "newton"
@@ -87,9 +92,19 @@ class Protocol:
             raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {self.bending!r}")
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if not (np.isfinite(self.jiggle) and 0 <= self.jiggle <= 0.5):
+        if self.jiggle is not None and self.temperature is not None:
+            raise ValueError(f"give either jiggle (fraction of the mean edge length, got "
+                             f"{self.jiggle!r}) or temperature (Surface Evolver's jiggle scale, "
+                             f"got {self.temperature!r}), not both")
+        if self.jiggle is None and self.temperature is None:
+            object.__setattr__(self, "temperature", DEFAULT_TEMPERATURE)
+        if self.jiggle is not None and not (np.isfinite(self.jiggle) and 0 <= self.jiggle <= 0.5):
             raise ValueError(f"jiggle amplitude must be in [0, 0.5] (fraction of the mean edge "
                              f"length), got {self.jiggle!r}")
+        if self.temperature is not None and not (np.isfinite(self.temperature)
+                                                 and 0 <= self.temperature <= 1):
+            raise ValueError(f"jiggle temperature must be in [0, 1] (Surface Evolver's scale; "
+                             f"its default is 0.05), got {self.temperature!r}")
         if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.c0 is not None and not np.isfinite(self.c0):
@@ -108,7 +123,16 @@ class Protocol:
     @classmethod
     def from_dict(cls, data: dict) -> "Protocol":
         names = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in data.items() if k in names})
+        data = {k: v for k, v in data.items() if k in names}
+        if "temperature" not in data:  # stored before the temperature option existed
+            data.setdefault("jiggle", 0.01)
+        return cls(**data)
+
+    def jiggle_sigma(self, X_reference: np.ndarray, X: np.ndarray, edges: np.ndarray) -> float:
+        """The jiggle's displacement std per coordinate at positions ``X``."""
+        if self.temperature is not None:
+            return evolver_sigma(self.temperature, X_reference)
+        return float(self.jiggle) * mean_edge_length(X, edges)
 
 
 @dataclass(frozen=True)
@@ -203,7 +227,8 @@ def step(ctx: Context, state: State):
     else:
         target, pressure = p.schedule[k - 1], None
         V_target = ctx.V0 * (1.0 - target)
-    X = jiggle(state.X, ctx.mesh.topology.edges, p.jiggle, step_rng(p.seed, k))
+    sigma = p.jiggle_sigma(ctx.mesh.X, state.X, ctx.mesh.topology.edges)
+    X = jiggle(state.X, ctx.mesh.topology.edges, 0.0, step_rng(p.seed, k), sigma=sigma)
     result = _minimize(ctx, ctx.energy, X, V_target, pressure)
     iterations = result.nit
     E_before = result.fun

@@ -24,7 +24,7 @@ Columns (:data:`COLUMNS`):
 - ``name``, ``path`` (relative to ``OUT``), the parameters (from ``run.json`` where the run
   exists, else from ``sweep.json``): ``gamma``, ``nu``, ``seed``, ``mesh`` (``random`` or
   ``icosphere``), ``n_vertices``, ``icosphere`` (level), ``dv``, ``until``, ``c0_cycle``,
-  ``jiggle``, ``bending``, ``method``;
+  ``jiggle``, ``temperature``, ``bending``, ``method``;
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
   written or whose worker died; ``message``; ``stop_reason`` (``self-intersection`` or
@@ -78,7 +78,7 @@ PRESSURE_DROP = 0.2
 W_RANGE = (0.53, 0.76)
 
 PARAMETER_COLUMNS = ("gamma", "nu", "seed", "mesh", "n_vertices", "icosphere", "dv", "until",
-                     "c0_cycle", "jiggle", "bending", "method")
+                     "c0_cycle", "jiggle", "temperature", "bending", "method")
 RESULT_COLUMNS = ("status", "message", "stop_reason", "steps", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "primary_source",
                   "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
@@ -270,7 +270,7 @@ def _parameters(point: dict, meta: dict | None) -> dict:
     if meta is not None:  # the run folder is the truth where it exists
         params, protocol = meta.get("params", {}), meta.get("protocol", {})
         row.update(gamma=params.get("gamma"), nu=params.get("nu"))
-        for key in ("seed", "c0_cycle", "jiggle", "bending", "method"):
+        for key in ("seed", "c0_cycle", "jiggle", "temperature", "bending", "method"):
             if key in protocol:
                 row[key] = protocol[key]
         row["n_vertices"] = meta.get("mesh", {}).get("n_vertices", row["n_vertices"])
@@ -381,7 +381,7 @@ class Catalogue:
 
 
 _INT_COLUMNS = ("seed", "n_vertices", "icosphere", "steps", "W_steps", "attempts")
-_FLOAT_COLUMNS = ("gamma", "nu", "dv", "until", "jiggle", "final_dV_over_V",
+_FLOAT_COLUMNS = ("gamma", "nu", "dv", "until", "jiggle", "temperature", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "axisymmetry_loss_dV_over_V",
                   "wrinkles_dV_over_V", "W_mean", "W_std", "wall_s", "task_wall_s", "task_cpu_s")
 _BOOL_COLUMNS = ("c0_cycle", "primary_confirmed")

@@ -1,0 +1,69 @@
+"""The jiggle: Surface Evolver's displacement scale, the edge-length scale, seeding, options."""
+
+import numpy as np
+import pytest
+
+from shellbuckle.mesh.icosphere import icosphere
+from shellbuckle.mesh.random_sphere import random_sphere
+from shellbuckle.protocol.deflate import Protocol
+from shellbuckle.protocol.jiggle import (EVOLVER_JIGGLE_SCALE, evolver_sigma, jiggle,
+                                         mean_edge_length, overall_size, step_rng)
+
+
+def test_evolver_scale_follows_its_source():
+    # iterate.c: gaussian() * temperature * max_len * overall_size; gaussian() is
+    # (sum of 5 uniforms in [0, 1) - 2.5) / 5 * sqrt(12/5), of variance 5/12 / 25 * 12/5 = 1/25
+    g_std = np.sqrt(5 / 12) / 5 * np.sqrt(12 / 5)
+    assert EVOLVER_JIGGLE_SCALE == pytest.approx(g_std * 1.4, rel=1e-12)
+
+
+@pytest.mark.parametrize("R", [1.0, 2.5])
+def test_evolver_sigma_is_mesh_independent_and_proportional_to_size(R):
+    coarse, fine = icosphere(3, R=R), random_sphere(2000, seed=1, R=R)
+    # the bounding box of an inscribed mesh: 2R up to its sagitta (icosphere(3) misses the poles)
+    assert overall_size(coarse.X) == pytest.approx(2 * R, rel=3e-2)
+    assert overall_size(fine.X) == pytest.approx(2 * R, rel=3e-3)
+    # Surface Evolver 2.70 measured: std 0.0279 R at its default temperature 0.05
+    assert evolver_sigma(0.05, fine.X) == pytest.approx(0.028 * R, rel=4e-3)
+    assert evolver_sigma(0.1, coarse.X) == pytest.approx(2 * evolver_sigma(0.05, coarse.X))
+
+
+def test_displacements_have_the_requested_std_and_zero_mean():
+    m = random_sphere(3000, seed=0)
+    rng = step_rng(7, 3)
+    d = jiggle(m.X, m.topology.edges, 0.0, rng, sigma=0.02) - m.X
+    n = d.size
+    assert d.std() == pytest.approx(0.02, rel=4 / np.sqrt(n))  # ~4 standard errors
+    assert abs(d.mean()) < 4 * 0.02 / np.sqrt(n)
+    e = jiggle(m.X, m.topology.edges, 0.1, step_rng(7, 3)) - m.X
+    assert e.std() == pytest.approx(0.1 * mean_edge_length(m.X, m.topology.edges), rel=4 / np.sqrt(n))
+
+
+def test_same_seed_and_step_give_the_same_jiggle_and_zero_draws_nothing():
+    m = icosphere(2)
+    a = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5), sigma=0.01)
+    b = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5), sigma=0.01)
+    c = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 6), sigma=0.01)
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    assert np.array_equal(jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5)), m.X)
+
+
+def test_protocol_jiggle_options():
+    m = icosphere(3)
+    default = Protocol(schedule=(0.1,))
+    assert default.temperature == 0.05 and default.jiggle is None
+    assert default.jiggle_sigma(m.X, m.X, m.topology.edges) == pytest.approx(0.028, rel=3e-2)
+    by_edge = Protocol(schedule=(0.1,), jiggle=0.2)
+    assert by_edge.temperature is None
+    assert by_edge.jiggle_sigma(m.X, m.X, m.topology.edges) == pytest.approx(
+        0.2 * mean_edge_length(m.X, m.topology.edges))
+    with pytest.raises(ValueError, match="not both"):
+        Protocol(schedule=(0.1,), jiggle=0.1, temperature=0.05)
+    with pytest.raises(ValueError, match="temperature"):
+        Protocol(schedule=(0.1,), temperature=-0.1)
+    # a protocol stored before the temperature option existed keeps its edge-length jiggle
+    old = default.to_dict()
+    old.pop("temperature")
+    old.pop("jiggle")
+    assert Protocol.from_dict(old).jiggle == 0.01
+    assert Protocol.from_dict(default.to_dict()) == default
