@@ -14,6 +14,7 @@ The named thresholds and their calibration are documented in ``docs/analysis.md`
 from .classify import (RUN_COLUMNS, SHAPES, Classification, analyze_run, classify,
                        classify_descriptors, classify_run)
 from .descriptors import Descriptors, ShapeAnalyzer, describe
+from .collect import collect_runs, threshold_fits, wrinkles_by_gamma
 from .events import Event, events, thresholds
 from .fits import (PowerLawFit, critical_gamma, crossover, fit_power_law, gamma_at,
                    wrinkle_average)
@@ -21,4 +22,5 @@ from .fits import (PowerLawFit, critical_gamma, crossover, fit_power_law, gamma_
 __all__ = ["RUN_COLUMNS", "SHAPES", "Classification", "Descriptors", "Event", "ShapeAnalyzer",
            "analyze_run", "classify", "classify_descriptors", "classify_run", "describe",
            "events", "thresholds", "PowerLawFit", "critical_gamma", "crossover",
-           "fit_power_law", "gamma_at", "wrinkle_average"]
+           "fit_power_law", "gamma_at", "wrinkle_average", "collect_runs", "threshold_fits",
+           "wrinkles_by_gamma"]

@@ -101,7 +101,7 @@ def _decimals(err: float) -> int:
 def _with_error(value: float, err: float) -> str:
     """``2.80(±0.15)``: the error with one or two significant digits, the value to match."""
     if not (math.isfinite(err) and err > 0):
-        return f"{value:.3g}(±?)" if not err == 0 else f"{value:.4g}(±0)"
+        return f"{value:.4g}(±?)" if not err == 0 else f"{value:.4g}(±0)"
     d = _decimals(err)
     return f"{value:.{d}f}(±{err:.{d}f})"
 

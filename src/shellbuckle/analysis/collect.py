@@ -1,0 +1,394 @@
+"""Across runs: one table of many run folders, the threshold power laws, the paper's numbers.
+
+- :func:`collect_runs` (paths) -> pandas DataFrame, one row per run folder (run folders, sweep
+  folders with a ``sweep.json``, or folders holding run folders), read from the stores: the
+  parameters and protocol, status, stop, the buckling thresholds of
+  :func:`shellbuckle.analysis.events` and the W average of
+  :func:`shellbuckle.analysis.fits.wrinkle_average`. Steps without stored analysis are
+  classified on the fly (nothing is written unless ``store_analysis=True``); no simulation is
+  ever re-run.
+- :func:`threshold_points` / :func:`threshold_fits`: per-gamma averages of the thresholds and
+  the power laws of the paper's Fig. 10 fitted to them.
+- :func:`wrinkles_by_gamma`: W pooled over the runs at each gamma (the paper's Fig. 5).
+- :func:`load_reference`: the paper's numbers (``reference/quilliet2008.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .fits import W_WINDOW, fit_power_law, wrinkle_average
+
+log = logging.getLogger(__name__)
+
+#: Columns of :func:`collect_runs`, in order.
+COLUMNS = ("path", "name", "parent", "gamma", "nu", "seed", "n_vertices", "mesh", "jiggle",
+           "temperature", "c0_cycle", "method", "bending", "control", "dv", "until", "status",
+           "message", "n_steps", "stop_dV_over_V", "stop_reason", "primary_dV_over_V",
+           "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
+           "W_std", "W_steps", "final_shape", "analysis", "wall_s")
+#: The thresholds of Fig. 10 (column ``<name>_dV_over_V``).
+THRESHOLDS = ("primary", "axisymmetry_loss", "wrinkles")
+#: Environment variable naming the reference JSON (else it is searched, :func:`load_reference`).
+REFERENCE_ENV = "SHELLBUCKLE_REFERENCE"
+REFERENCE_NAME = "quilliet2008.json"
+
+
+# --------------------------------------------------------------------------- finding runs
+
+def _run_folders(path: Path) -> list[Path]:
+    """The run folders a path stands for (ValueError if none)."""
+    from ..store.catalogue import SWEEP_JSON, read_sweep_file
+    from ..store.run import RUN_JSON
+
+    if not path.exists():
+        raise ValueError(f"{str(path)!r} does not exist (expected a run folder or a sweep folder)")
+    if not path.is_dir():
+        raise ValueError(f"{str(path)!r} is a file; expected a run folder (with {RUN_JSON}) or a "
+                         f"sweep folder (with {SWEEP_JSON})")
+    if (path / RUN_JSON).exists():
+        return [path]
+    if (path / SWEEP_JSON).exists():
+        names = list(read_sweep_file(path)["runs"])
+        found = [path / n for n in names if (path / n / RUN_JSON).exists()]
+        if len(found) < len(names):
+            log.info("%s: %d of %d runs of the sweep have no run folder yet (pending or failed "
+                     "before starting); skipped", path, len(names) - len(found), len(names))
+        return found
+    found = sorted(p for p in path.iterdir() if p.is_dir() and (p / RUN_JSON).exists())
+    if not found:
+        raise ValueError(f"{str(path)!r} is neither a run folder (no {RUN_JSON}) nor a sweep "
+                         f"folder (no {SWEEP_JSON}) nor a folder of run folders")
+    return found
+
+
+def run_folders(paths) -> list[Path]:
+    """Every run folder named by ``paths`` (one path or a list), each once, in order."""
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    paths = list(paths)
+    if not paths:
+        raise ValueError("no run folder given")
+    out, seen = [], set()
+    for p in paths:
+        for folder in _run_folders(Path(p)):
+            key = folder.resolve()
+            if key not in seen:
+                seen.add(key)
+                out.append(folder)
+    return out
+
+
+# --------------------------------------------------------------------------- one run
+
+def analysed_table(run, *, store: bool = False) -> tuple[pd.DataFrame, str]:
+    """The run's table with the analysis columns for every step, and where they came from
+    (``"stored"``, ``"computed"``: classified now, or ``"stored now"`` with ``store=True``,
+    which writes them with :func:`shellbuckle.analysis.analyze_run`)."""
+    from .classify import analyze_run, classify_run
+
+    table = run.table
+    if table.empty:
+        return table, "none"
+    if "shape" in table.columns:
+        missing = [int(k) for k in table.loc[table["shape"].isna(), "step"]]
+    else:
+        missing = [int(k) for k in table["step"]]
+    if not missing:
+        return table, "stored"
+    if store:
+        return analyze_run(run, steps=missing), "stored now"
+    results = classify_run(run, steps=missing)
+    table = table.copy()
+    first = next(iter(results.values()))
+    for name in first.columns():
+        if name not in table.columns:
+            table[name] = None
+        table[name] = table[name].astype(object)
+    for k, c in results.items():
+        row = table.index[table["step"] == k]
+        for name, value in c.columns().items():
+            table.loc[row, name] = value
+    for name in ("n_dimples", "corners", "W", "rim_mode", "concave_arcs"):
+        if name in table.columns:
+            table[name] = pd.to_numeric(table[name]).astype("Int64")
+    return table, "computed"
+
+
+def mesh_kind(faces: np.ndarray, n_vertices: int) -> str:
+    """``icosphere(n)`` when the triangulation is a subdivided icosahedron (``10 n^2 + 2``
+    vertices, 12 of valence 5 and the others of valence 6), else ``random``."""
+    valence = np.bincount(np.asarray(faces).ravel(), minlength=n_vertices)
+    n = round(math.sqrt(max(n_vertices - 2, 0) / 10.0))
+    if 10 * n * n + 2 == n_vertices and (valence == 5).sum() == 12 \
+            and (valence == 6).sum() == n_vertices - 12:
+        return f"icosphere({n})"
+    return "random"
+
+
+def _schedule_numbers(protocol: dict) -> tuple[float, float]:
+    schedule = np.asarray(protocol.get("schedule", []) or [], dtype=float)
+    if protocol.get("control", "volume") != "volume" or len(schedule) == 0:
+        return math.nan, math.nan
+    steps = np.diff(np.concatenate([[0.0], schedule]))
+    return float(np.median(np.abs(steps))), float(schedule[-1])
+
+
+def collect_run(folder, *, store_analysis: bool = False) -> tuple[dict, pd.DataFrame]:
+    """The :func:`collect_runs` row of one run folder, and its analysed table."""
+    from ..run import Run
+    from ..store.catalogue import stop_reason
+    from .events import events
+
+    run = Run.open(folder)
+    meta = run.store.meta
+    params, protocol = meta.get("params", {}), meta.get("protocol", {})
+    table, source = analysed_table(run, store=store_analysis)
+    dv, until = _schedule_numbers(protocol)
+    parent = meta.get("parent")
+    row = dict.fromkeys(COLUMNS)
+    row.update(path=str(Path(folder).resolve()), name=Path(folder).resolve().name,
+               parent=None if not parent else str(parent.get("path", parent)),
+               gamma=params.get("gamma"), nu=params.get("nu"), seed=protocol.get("seed"),
+               n_vertices=run.store.n_vertices, mesh=mesh_kind(run.faces, run.store.n_vertices),
+               jiggle=protocol.get("jiggle"), temperature=protocol.get("temperature"),
+               c0_cycle=protocol.get("c0_cycle"), method=protocol.get("method"),
+               bending=protocol.get("bending"), control=protocol.get("control", "volume"),
+               dv=dv, until=until, status=meta.get("status"), message=meta.get("message"),
+               stop_reason=stop_reason(meta.get("status"), meta.get("message")),
+               analysis=source, W_steps=0)
+    if table.empty:
+        return row, table
+    row.update(n_steps=int(table["step"].iloc[-1]),
+               stop_dV_over_V=float(table["dV_over_V"].iloc[-1]),
+               final_shape=str(table["shape"].iloc[-1]),
+               wall_s=float(np.nansum(table["wall_s"].to_numpy(dtype=float))))
+    found = {}
+    for e in events(run, table=table):
+        found.setdefault(e.name, e)
+    if "primary_buckling" in found:
+        row.update(primary_dV_over_V=found["primary_buckling"].dV_over_V,
+                   primary_confirmed=found["primary_buckling"].confirmed)
+    for name in ("axisymmetry_loss", "wrinkles"):
+        if name in found:
+            row[f"{name}_dV_over_V"] = found[name].dV_over_V
+    avg = wrinkle_average(table, W_WINDOW)
+    row.update(W_mean=avg.mean, W_std=avg.std, W_steps=avg.n)
+    return row, table
+
+
+_FLOATS = ("gamma", "nu", "jiggle", "temperature", "dv", "until", "stop_dV_over_V",
+           "primary_dV_over_V", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
+           "W_std", "wall_s")
+_INTS = ("seed", "n_vertices", "n_steps", "W_steps")
+_BOOLS = ("c0_cycle", "primary_confirmed")
+
+
+def _typed(frame: pd.DataFrame) -> pd.DataFrame:
+    for c in _FLOATS:
+        frame[c] = pd.to_numeric(frame[c], errors="coerce").astype(np.float64)
+    for c in _INTS:
+        frame[c] = pd.array([None if v is None or v != v else int(v) for v in frame[c]],
+                            dtype="Int64")
+    for c in _BOOLS:
+        frame[c] = pd.array([None if v is None or v != v else bool(v) for v in frame[c]],
+                            dtype="boolean")
+    return frame
+
+
+def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = None,
+                 progress: bool = False) -> pd.DataFrame:
+    """One row per run folder (columns :data:`COLUMNS`).
+
+    ``paths``: run folders, sweep folders (the runs of their ``sweep.json`` that have a
+    folder), or folders whose sub-folders are runs; each run appears once. Per row: ``path``
+    (absolute), ``name``, ``parent`` (the run it branches from), the parameters ``gamma``,
+    ``nu`` and protocol fields ``seed``, ``jiggle``, ``temperature``, ``c0_cycle``,
+    ``method``, ``bending``, ``control``, ``dv`` (volume step, the median of the schedule's
+    increments), ``until`` (last target); ``n_vertices``, ``mesh`` (:func:`mesh_kind`);
+    ``status``, ``message``, ``n_steps`` (last finished step), ``stop_dV_over_V`` (dV/V of the
+    last step), ``stop_reason`` (``self-intersection``, ``end of schedule`` or None); the
+    thresholds ``primary_dV_over_V`` (with ``primary_confirmed``),
+    ``axisymmetry_loss_dV_over_V``, ``wrinkles_dV_over_V`` (NaN where the event did not
+    happen); ``W_mean``, ``W_std``, ``W_steps`` over the wrinkled steps with dV/V in
+    [0.53, 0.76]; ``final_shape``; ``analysis`` (``stored``, ``computed``, ``stored now``);
+    ``wall_s`` (sum of the step wall times).
+
+    ``tables``: a dict that receives ``{path: analysed table}`` (to plot without reading the
+    runs again). ValueError for a path that is not a run or sweep folder.
+    """
+    folders = run_folders(paths)
+    iterator = folders
+    if progress:
+        from tqdm.auto import tqdm
+
+        iterator = tqdm(folders, unit="run", desc="collect", dynamic_ncols=True)
+    rows = []
+    for folder in iterator:
+        row, table = collect_run(folder, store_analysis=store_analysis)
+        rows.append(row)
+        if tables is not None:
+            tables[row["path"]] = table
+    return _typed(pd.DataFrame(rows, columns=list(COLUMNS)))
+
+
+# --------------------------------------------------------------------------- aggregation
+
+def deflation_runs(df: pd.DataFrame) -> pd.DataFrame:
+    """The runs that follow the paper's deflation protocol: volume control, the
+    zero-curvature cycle on, not branched from another run, at least one step."""
+    keep = (df["control"].fillna("volume") == "volume") & df["parent"].isna()
+    keep &= df["c0_cycle"].fillna(True).astype(bool)
+    keep &= df["n_steps"].fillna(0).astype(int) > 0
+    return df[keep.to_numpy()]
+
+
+def _one_nu(df: pd.DataFrame, nu) -> pd.DataFrame:
+    if nu is not None:
+        return df[np.isclose(df["nu"].to_numpy(float), float(nu), rtol=1e-6)]
+    values = df["nu"].round(6)
+    if values.nunique() > 1:
+        chosen = values.value_counts().idxmax()
+        log.warning("runs at several nu (%s): fitting those at nu = %g only (pass nu=...)",
+                    ", ".join(f"{v:g}" for v in sorted(values.unique())), chosen)
+        return df[(values == chosen).to_numpy()]
+    return df
+
+
+def _gamma_key(gamma: pd.Series) -> pd.Series:
+    return gamma.map(lambda g: float(f"{g:.6g}"))
+
+
+def threshold_points(df: pd.DataFrame, name: str, *, nu=None) -> pd.DataFrame:
+    """Per-gamma statistics of the threshold ``name`` (one of :data:`THRESHOLDS`) over the
+    deflation runs (:func:`deflation_runs`) where it happened: columns ``gamma``, ``mean``,
+    ``std`` (sample standard deviation over runs, NaN for one run), ``n`` (runs), ``dv``
+    (median volume step) and ``sigma``: ``max(std, dv/sqrt(12))``, the scatter floored at the
+    resolution of a threshold read at discrete volume steps (uniform within one step)."""
+    if name not in THRESHOLDS:
+        raise ValueError(f"threshold must be one of {', '.join(THRESHOLDS)}, got {name!r}")
+    runs = _one_nu(deflation_runs(df), nu)
+    column = f"{name}_dV_over_V"
+    runs = runs[np.isfinite(runs[column].to_numpy(float))]
+    rows = []
+    for gamma, group in runs.groupby(_gamma_key(runs["gamma"]), sort=True):
+        values = group[column].to_numpy(float)
+        std = float(values.std(ddof=1)) if len(values) > 1 else math.nan
+        dv = float(np.nanmedian(group["dv"].to_numpy(float))) if group["dv"].notna().any() \
+            else math.nan
+        floor = dv / math.sqrt(12.0) if math.isfinite(dv) else 0.0
+        rows.append({"gamma": float(gamma), "mean": float(values.mean()), "std": std,
+                     "n": len(values), "dv": dv,
+                     "sigma": max(std, floor) if math.isfinite(std) else math.nan})
+    return pd.DataFrame(rows, columns=["gamma", "mean", "std", "n", "dv", "sigma"])
+
+
+def _sigma(points: pd.DataFrame):
+    """The per-point sigma when every gamma has several runs (and a positive sigma)."""
+    s = points["sigma"].to_numpy(float)
+    if len(s) and (points["n"] >= 2).all() and np.isfinite(s).all() and (s > 0).all():
+        return s
+    return None
+
+
+def threshold_fits(df: pd.DataFrame, *, nu=None, bootstrap: int = 0) -> dict:
+    """Power laws of the thresholds vs gamma (the paper's Fig. 10), fitted to the per-gamma
+    means of :func:`threshold_points`.
+
+    Keys (present only when the runs allow the fit; the log says why one is missing):
+    ``primary`` (free exponent; paper 2.8 gamma^-0.55), ``primary_theory`` (exponent fixed at
+    the theory's -3/5), ``secondary`` (exponent fixed at -1 on the loss-of-axisymmetry and
+    wrinkle points together; paper 850/gamma), ``secondary_free`` (same points, free exponent),
+    ``axisymmetry_loss`` and ``wrinkles`` (exponent -1, each alone). The means are weighted by
+    their ``sigma`` when every gamma has several runs, else fitted unweighted (errors from the
+    residual scatter). A free exponent needs two gammas, a fixed one one gamma.
+    """
+    points = {n: threshold_points(df, n, nu=nu) for n in THRESHOLDS}
+    fits = {}
+
+    def attempt(key, pts, exponent):
+        need = 1 if exponent is not None else 2
+        if len(pts) < need:
+            log.info("fit %s skipped: it needs thresholds at %d gamma value(s), the runs give "
+                     "%d", key, need, len(pts))
+            return
+        fits[key] = fit_power_law(pts["gamma"], pts["mean"], sigma=_sigma(pts),
+                                  exponent=exponent, bootstrap=bootstrap)
+
+    attempt("primary", points["primary"], None)
+    attempt("primary_theory", points["primary"], -0.6)
+    secondary = pd.concat([points["axisymmetry_loss"], points["wrinkles"]], ignore_index=True)
+    attempt("secondary", secondary, -1.0)
+    if secondary["gamma"].nunique() >= 2:
+        attempt("secondary_free", secondary, None)
+    else:
+        log.info("fit secondary_free skipped: it needs secondary thresholds at 2 gamma values, "
+                 "the runs give %d", secondary["gamma"].nunique())
+    attempt("axisymmetry_loss", points["axisymmetry_loss"], -1.0)
+    attempt("wrinkles", points["wrinkles"], -1.0)
+    return fits
+
+
+def wrinkles_by_gamma(df: pd.DataFrame, *, nu=None) -> pd.DataFrame:
+    """W pooled over the deflation runs at each gamma: columns ``gamma``, ``W_mean``,
+    ``W_std`` (population standard deviation of all the pooled steps, as in the paper's
+    Fig. 5 error bars), ``W_steps`` and ``runs`` (runs contributing steps). Exact pooling of
+    the per-run means ``m_i``, stds ``s_i`` and counts ``n_i``:
+    ``M = sum n_i m_i / N``, ``S^2 = sum n_i (s_i^2 + m_i^2) / N - M^2``."""
+    runs = _one_nu(deflation_runs(df), nu)
+    runs = runs[runs["W_steps"].fillna(0).astype(int).to_numpy() > 0]
+    rows = []
+    for gamma, group in runs.groupby(_gamma_key(runs["gamma"]), sort=True):
+        n = group["W_steps"].to_numpy(float)
+        m = group["W_mean"].to_numpy(float)
+        s = group["W_std"].to_numpy(float)
+        N = n.sum()
+        M = float((n * m).sum() / N)
+        var = float((n * (s ** 2 + m ** 2)).sum() / N - M ** 2)
+        rows.append({"gamma": float(gamma), "W_mean": M, "W_std": math.sqrt(max(var, 0.0)),
+                     "W_steps": int(N), "runs": len(group)})
+    return pd.DataFrame(rows, columns=["gamma", "W_mean", "W_std", "W_steps", "runs"])
+
+
+# --------------------------------------------------------------------------- the paper
+
+def reference_path(path=None) -> Path:
+    """Where the paper's numbers are: ``path`` if given, else ``$SHELLBUCKLE_REFERENCE``, else
+    ``reference/quilliet2008.json`` or ``shared/reference/quilliet2008.json`` under the
+    current folder or any folder above this package (the project keeps it beside the
+    repository). ValueError if none exists."""
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise ValueError(f"reference file {str(p)!r} does not exist")
+        return p
+    env = os.environ.get(REFERENCE_ENV)
+    if env:
+        return reference_path(env)
+    bases = [Path.cwd(), *Path.cwd().parents, *Path(__file__).resolve().parents]
+    for base in bases:
+        for candidate in (base / "reference" / REFERENCE_NAME,
+                          base / "shared" / "reference" / REFERENCE_NAME):
+            if candidate.is_file():
+                return candidate
+    raise ValueError(f"the paper's reference numbers ({REFERENCE_NAME}) were not found; give "
+                     f"the file with --reference FILE or ${REFERENCE_ENV}")
+
+
+def load_reference(path=None) -> dict:
+    """The paper's numbers (:func:`reference_path`) as a dict."""
+    p = reference_path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{p} is not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or "results" not in data:
+        raise ValueError(f"{p} does not hold the paper's reference numbers (no 'results')")
+    return data
