@@ -5,7 +5,10 @@ atomically before the next begins, so Ctrl-C or ``kill -9`` loses at most the st
 ``resume`` continues a stored run from its last finished step and, because the random stream of
 a step depends only on the seed and the step index, ends with exactly the table of an
 uninterrupted run. ``continue_from`` starts a new run from any stored step with another volume
-schedule (re-inflation, arbitrary paths) while keeping the original stress-free reference.
+schedule (re-inflation, arbitrary paths) while keeping the original stress-free reference;
+``continue_in_parameter`` follows a path in gamma or in c0 at the fixed volume of a stored step
+(the paper's Fig. 11 conformation, reached from a capsule at lower gamma), and
+``compare_paths`` puts two conformations reached by different paths side by side.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ import numpy as np
 from .mesh.mesh import Mesh
 from .params import ShellParameters
 from .protocol import deflate as protocol_mod
-from .protocol.deflate import Protocol, State
-from .protocol.schedule import PAPER_DV
+from .protocol.deflate import PARAMETER_CONTROLS, Protocol, State
+from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .store.run import RunStore
 
 log = logging.getLogger(__name__)
@@ -64,6 +67,36 @@ class Run:
     @property
     def faces(self) -> np.ndarray:
         return self.store.faces
+
+    def params_at(self, k: int = -1) -> ShellParameters:
+        """The parameters in force at step ``k``: :attr:`params`, with the step's own gamma
+        along a gamma path (the ``gamma`` column of its table)."""
+        params = self.params
+        gamma = self.store.record(self._step(k)).get("gamma")
+        if gamma is None or gamma == params.gamma:
+            return params
+        return ShellParameters.from_gamma(gamma, nu=params.nu, kappa=params.kappa, R=params.R)
+
+    def c0_at(self, k: int = -1) -> float:
+        """The spontaneous curvature (c = c1 + c2) in force at step ``k``."""
+        c0 = self.store.record(self._step(k)).get("c0")
+        if c0 is not None:
+            return float(c0)
+        c0 = self.protocol.c0
+        return 2.0 / self.params.R if c0 is None else float(c0)
+
+    def _step(self, k: int) -> int:
+        """Step ``k`` of this run (negative: counted from the last); ValueError if absent."""
+        steps = self.store.steps
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+            raise ValueError(f"a step must be an integer, got {k!r}")
+        if k < 0 and -len(steps) <= k:
+            return steps[k]
+        if k not in steps:
+            held = f"0..{steps[-1]}" if steps else "none"
+            raise ValueError(f"step {k} is not a finished step of run {self.path}; allowed: "
+                             f"{held} (or -1 .. -{len(steps)} counted from the last)")
+        return int(k)
 
     def positions(self, k: int = -1) -> np.ndarray:
         steps = self.store.steps
@@ -144,7 +177,7 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
     parent's initial sphere.
     """
     parent = run if isinstance(run, Run) else Run.open(run)
-    base = parent.protocol
+    step = parent._step(step)
     start = float(parent.store.record(step)["dV_over_V"])
     if schedule is None:
         if dv is None or until is None:
@@ -152,18 +185,133 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
         from .protocol.schedule import linear_schedule
 
         schedule = linear_schedule(dv, until, start=start)
+    fields = _branch_fields(parent, step, options)
+    fields |= {"schedule": list(np.atleast_1d(schedule)), "control": "volume",
+               "fixed_dV_over_V": None}
+    protocol = Protocol.from_dict(fields)
+    params = parent.params_at(step)
+    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict())
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    return _drive(store, mesh, params, protocol, progress=progress)
+
+
+def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
+                          increments: int | None = None, progress: bool = False,
+                          max_steps: int | None = None, **options) -> Run:
+    """A path in gamma or in c0 at the fixed volume of step ``step`` of ``run``, in ``out``.
+
+    Give ``gamma`` or ``c0``: a target value with ``increments`` (gamma in equal ratios from
+    the step's gamma, :func:`~shellbuckle.protocol.schedule.geometric_schedule`; c0 in equal
+    differences from the step's c0, convention c = c1 + c2), or a list of values, one per
+    increment. Each increment is one stored step: jiggle, minimization at the enclosed
+    volume of the start step (its measured dV/V, held exactly) and the c0 cycle, as in the
+    deflation protocol, whose options (``c0_cycle``, ``jiggle``, ``temperature``, ``seed``,
+    ``method``, ``tol``, ...) default to the parent run's. ``increments = 0`` stores the
+    start only. The table has a ``gamma`` column; :meth:`Run.params_at` gives the parameters
+    of each step, and ``continue_from`` on the result deflates further at the path's end.
+    The run stays resumable (call again with the same arguments, or :func:`resume`).
+    """
+    parent = run if isinstance(run, Run) else Run.open(run)
+    if (gamma is None) == (c0 is None):
+        raise ValueError("give exactly one of gamma=... and c0=... (the parameter to follow)")
+    step = parent._step(step)
+    control, value = ("gamma", gamma) if gamma is not None else ("c0", c0)
+    start = parent.params_at(step).gamma if control == "gamma" else parent.c0_at(step)
+    values = _parameter_values(control, value, start, increments)
+    fixed = float(parent.store.record(step)["dV_over_V"])
+    fields = _branch_fields(parent, step, options)
+    fields |= {"schedule": list(values), "control": control, "fixed_dV_over_V": fixed}
+    protocol = Protocol.from_dict(fields)
+    params = parent.params_at(step)
+    path = {"parameter": control, "start": float(start),
+            "end": float(values[-1]) if len(values) else float(start),
+            "increments": len(values),
+            "spacing": ("geometric" if control == "gamma" else "linear")
+            if np.ndim(value) == 0 else "given",
+            "fixed_dV_over_V": fixed, "parent": str(parent.path.resolve()), "parent_step": step}
+    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict(),
+                                extra_meta={"path": path}, record={"gamma": params.gamma})
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+
+
+def _parameter_values(control: str, value, start: float, increments) -> np.ndarray:
+    if np.ndim(value) == 0:
+        if increments is None:
+            raise ValueError(f"{control} = {value!r} is a target: give increments=N (the number "
+                             f"of steps from the start value {start:g}), or a list of values")
+        spaced = geometric_schedule if control == "gamma" else linear_values
+        return spaced(start, value, increments)
+    if increments is not None:
+        raise ValueError(f"give increments only with a target {control}, not with a list of "
+                         "values")
+    values = np.asarray(value, dtype=float).ravel()
+    if control == "gamma" and not (np.isfinite(values) & (values > 0)).all():
+        raise ValueError(f"gamma = A R^2/kappa must be > 0 at every increment, got "
+                         f"{values.tolist()!r}")
+    return values
+
+
+def _branch_fields(parent: Run, step: int, options: dict) -> dict:
+    """The protocol fields of a branch from step ``step``: the parent's, with ``options``
+    replacing them and the c0 in force at that step (after a c0 path)."""
+    base = parent.protocol
     # a jiggle option left at None keeps the parent's; one given replaces the parent's other one
     options = {k: v for k, v in options.items()
                if not (k in ("jiggle", "temperature") and v is None)}
-    fields = base.to_dict() | options | {"schedule": list(np.atleast_1d(schedule))}
+    fields = base.to_dict() | options
     if "jiggle" in options and "temperature" not in options:
         fields["temperature"] = None
     elif "temperature" in options and "jiggle" not in options:
         fields["jiggle"] = None
-    protocol = Protocol.from_dict(fields)
-    store = parent.store.branch(out, step, protocol=protocol.to_dict())
-    mesh = Mesh.from_arrays(store.X0, store.faces)
-    return _drive(store, mesh, parent.params, protocol, progress=progress)
+    if base.control == "c0" and "c0" not in options:
+        fields["c0"] = parent.c0_at(step)
+    return fields
+
+
+def compare_paths(run_a, step_a: int, run_b, step_b: int) -> dict:
+    """Two conformations reached by different paths, side by side (the paper's Fig. 11).
+
+    Returns ``{"a": {...}, "b": {...}, "ratio": E_b / E_a, "same_parameters": bool,
+    "differences": [...]}`` where each side holds ``path``, ``step``, ``gamma``, ``nu``,
+    ``c0``, ``dV_over_V``, ``E_total``, ``E_bend``, ``E_stretch``, ``E_over_kappa`` (as
+    stored) and the shape (``shape``, ``n_dimples``, ``corners``, ``W``, ``dent_depth``,
+    ``asphericity``; stored analysis, or classified now). The paper's number: a = the
+    conformation reached from a capsule at lower gamma, b = the W = 7 wrinkled bowl of
+    progressive deflation at gamma = 15163, dV/V = 0.645: ratio 1.42. ``same_parameters`` is
+    False (and ``differences`` says why) when gamma, nu or c0 differ by more than 1e-9
+    (relative) or dV/V by more than 1e-6.
+    """
+    sides = {"a": _side(run_a, step_a), "b": _side(run_b, step_b)}
+    a, b = sides["a"], sides["b"]
+    differences = []
+    for name in ("gamma", "nu", "c0"):
+        if not np.isclose(a[name], b[name], rtol=1e-9, atol=0.0):
+            differences.append(f"{name}: {a[name]:.10g} vs {b[name]:.10g}")
+    if abs(a["dV_over_V"] - b["dV_over_V"]) > 1e-6:
+        differences.append(f"dV/V: {a['dV_over_V']:.8f} vs {b['dV_over_V']:.8f}")
+    ratio = b["E_total"] / a["E_total"] if a["E_total"] != 0 else float("nan")
+    return {"a": a, "b": b, "ratio": float(ratio), "same_parameters": not differences,
+            "differences": differences}
+
+
+def _side(run, step: int) -> dict:
+    run = run if isinstance(run, Run) else Run.open(run)
+    k = run._step(step)
+    record = run.store.record(k)
+    params = run.params_at(k)
+    out = {"path": str(run.path), "step": k, "gamma": params.gamma, "nu": params.nu,
+           "c0": run.c0_at(k)}
+    out |= {name: float(record[name]) for name in ("dV_over_V", "E_total", "E_bend",
+                                                   "E_stretch", "E_over_kappa")}
+    shape = run.store.analysis().get(k)
+    if not shape or "shape" not in shape:
+        from .analysis import classify
+
+        shape = classify(run.positions(k), run.faces).columns()
+    out |= {name: shape.get(name) for name in ("shape", "n_dimples", "corners", "W",
+                                               "dent_depth", "asphericity")}
+    return out
 
 
 def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,

@@ -11,6 +11,13 @@ Protocol (Quilliet et al., EPJE 27, 13 (2008), §4.1), one volume step ``k``:
 5. measure self-contact; stop at self-intersection of the surface (the paper stopped at 7-11 %
    of V0) or at the end of the schedule.
 
+A path in parameter space at fixed volume uses the same step with ``control = "gamma"`` or
+``"c0"``: step ``k`` holds the enclosed volume at ``fixed_dV_over_V`` and sets the Foppl-von
+Karman number (``A = gamma kappa / R^2``; kappa, R and the rest state unchanged) or the
+spontaneous curvature to the ``k``-th value of the schedule before the jiggle, the
+minimization and the c0 cycle (which returns to that step's c0). The paper's Fig. 11
+conformation is reached this way, from a capsule at lower gamma.
+
 The init/step pair follows JAX MD: ``ctx, state = init(mesh, params, protocol)`` then
 ``state, record = step(ctx, state)``. A state is the step index and the positions only; the
 random stream of step ``k`` depends on ``(seed, k)`` alone, so a run resumed from its last
@@ -30,6 +37,7 @@ from ..energies.total import BENDING_KINDS, ShellEnergy
 from ..energies.volume import Volume
 from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
+from ..params import ShellParameters
 from ..solve import minimize
 from ..solve.linear import make_solver
 from ..solve.newton import pinned_dofs
@@ -41,7 +49,9 @@ from .schedule import PAPER_DV, check_schedule, linear_schedule
 log = logging.getLogger(__name__)
 
 METHODS = ("newton", "alternate", "cg", "gd")
-CONTROLS = ("volume", "pressure")
+CONTROLS = ("volume", "pressure", "gamma", "c0")
+PARAMETER_CONTROLS = ("gamma", "c0")
+"""Controls whose schedule is a parameter path at the fixed volume ``fixed_dV_over_V``."""
 
 DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
 """Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate
@@ -54,7 +64,9 @@ class Protocol:
 
     ``schedule``: target dV/V of steps 1, 2, ... (dV/V = 1 - V/V0, V0 the initial volume), or,
     with ``control = "pressure"``, the external overpressure p of each step (units kappa/R^3;
-    positive compresses): the shell then minimizes ``E + p V`` at free volume.
+    positive compresses): the shell then minimizes ``E + p V`` at free volume; with
+    ``control = "gamma"`` (or ``"c0"``), the gamma (or c0) of each step, at the volume
+    ``V0 (1 - fixed_dV_over_V)`` (an empty schedule is allowed: the path's start only).
     ``c0``: spontaneous curvature (c = c1 + c2), None for the stress-free ``2/R``.
     ``c0_cycle``: the paper's zero-curvature cycle at each step. The jiggle is set by
     ``temperature`` (Surface Evolver's scale: sigma = 0.28 T overall_size, 0.028 R at the
@@ -76,12 +88,20 @@ class Protocol:
     tol: float = 1e-9
     max_iter: int = 200
     control: str = "volume"
+    fixed_dV_over_V: float | None = None
 
     def __post_init__(self):
         if self.control not in CONTROLS:
             raise ValueError(f"control must be one of {', '.join(CONTROLS)}, got {self.control!r}")
+        if (self.fixed_dV_over_V is None) == (self.control in PARAMETER_CONTROLS):
+            raise ValueError(f"fixed_dV_over_V (the volume held along a parameter path) is "
+                             f"needed with control 'gamma' or 'c0' and only then; got "
+                             f"{self.fixed_dV_over_V!r} with control {self.control!r}")
         if self.control == "volume":
             schedule = check_schedule(self.schedule)
+        elif self.control in PARAMETER_CONTROLS:
+            schedule = _check_parameter_path(self.control, self.schedule, self.fixed_dV_over_V)
+            object.__setattr__(self, "fixed_dV_over_V", float(self.fixed_dV_over_V))
         else:
             schedule = np.atleast_1d(np.asarray(self.schedule, dtype=float))
             if schedule.ndim != 1 or len(schedule) == 0 or not np.isfinite(schedule).all():
@@ -118,7 +138,10 @@ class Protocol:
         return cls(schedule=tuple(linear_schedule(dv, until)), **options)
 
     def to_dict(self) -> dict:
-        return dataclasses.asdict(self) | {"schedule": list(self.schedule)}
+        out = dataclasses.asdict(self) | {"schedule": list(self.schedule)}
+        if self.fixed_dV_over_V is None:  # runs stored before parameter paths keep their identity
+            del out["fixed_dV_over_V"]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict) -> "Protocol":
@@ -133,6 +156,18 @@ class Protocol:
         if self.temperature is not None:
             return evolver_sigma(self.temperature, X_reference)
         return float(self.jiggle) * mean_edge_length(X, edges)
+
+
+def _check_parameter_path(control: str, schedule, fixed) -> np.ndarray:
+    values = np.atleast_1d(np.asarray(schedule, dtype=float)).ravel()
+    if not np.isfinite(values).all():
+        raise ValueError(f"a {control} path must hold finite values, got {values.tolist()!r}")
+    if control == "gamma" and (values <= 0).any():
+        bad = float(values[values <= 0][0])
+        raise ValueError(f"gamma = A R^2/kappa must be > 0 at every step of a gamma path, "
+                         f"got {bad!r}")
+    check_schedule([fixed])
+    return values
 
 
 @dataclass(frozen=True)
@@ -201,6 +236,18 @@ def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before
     }
 
 
+def at_parameter(ctx: Context, value: float) -> Context:
+    """The context of one step of a parameter path: gamma (``A = gamma kappa / R^2`` in the
+    stretching term, the rest state unchanged) or c0 set to ``value``."""
+    if ctx.protocol.control == "gamma":
+        old = ctx.params
+        params = ShellParameters.from_gamma(float(value), nu=old.nu, kappa=old.kappa, R=old.R)
+        stretching = dataclasses.replace(ctx.energy.stretching, A=params.A)
+        energy = ShellEnergy(stretching, ctx.energy.bending)
+        return dataclasses.replace(ctx, params=params, energy=energy)
+    return dataclasses.replace(ctx, energy=ctx.energy.with_c0(float(value)), c0=float(value))
+
+
 def _minimize(ctx: Context, energy, X, V_target, pressure=None):
     p = ctx.protocol
     if pressure is not None:
@@ -216,7 +263,8 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None):
 
 
 def step(ctx: Context, state: State):
-    """One volume step: jiggle, minimize, c0 cycle, measure. Returns ``(state, record)``."""
+    """One step (a volume, pressure, gamma or c0 increment): jiggle, minimize, c0 cycle,
+    measure. Returns ``(state, record)``; a parameter path's record also has ``gamma``."""
     p = ctx.protocol
     k = state.step + 1
     if k > len(p.schedule):
@@ -224,6 +272,10 @@ def step(ctx: Context, state: State):
     t0 = time.perf_counter()
     if p.control == "pressure":
         target, V_target, pressure = float("nan"), None, p.schedule[k - 1]
+    elif p.control in PARAMETER_CONTROLS:
+        ctx = at_parameter(ctx, p.schedule[k - 1])
+        target, pressure = p.fixed_dV_over_V, None
+        V_target = ctx.V0 * (1.0 - target)
     else:
         target, pressure = p.schedule[k - 1], None
         V_target = ctx.V0 * (1.0 - target)
@@ -241,6 +293,8 @@ def step(ctx: Context, state: State):
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
                      wall_s=time.perf_counter() - t0)
     record["step"] = k
+    if p.control in PARAMETER_CONTROLS:
+        record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:
         record["target_pressure"] = float(pressure)
     stopped = None

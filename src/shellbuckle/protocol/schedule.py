@@ -36,6 +36,42 @@ def linear_schedule(dv: float = PAPER_DV, until: float = 0.95, start: float = 0.
     return check_schedule(start + dv * np.arange(1, n + 1))
 
 
+def geometric_schedule(start: float, end: float, increments: int) -> np.ndarray:
+    """``increments`` values from ``start`` to ``end`` in equal ratios (``start`` excluded,
+    ``end`` included exactly): ``start (end/start)^(k/n)``, k = 1..n. For a positive parameter
+    spanning decades, such as gamma; ``increments = 0`` gives an empty schedule."""
+    start, end = _real("start", start), _real("end", end)
+    n = _increments(increments)
+    if start <= 0 or end <= 0:
+        raise ValueError(f"a geometric schedule needs positive values, got start = {start!r}, "
+                         f"end = {end!r} (gamma = A R^2/kappa must be > 0)")
+    values = start * (end / start) ** (np.arange(1, n + 1) / max(n, 1))
+    if n:
+        values[-1] = end
+    return values
+
+
+def linear_values(start: float, end: float, increments: int) -> np.ndarray:
+    """``increments`` equally spaced values from ``start`` (excluded) to ``end`` (included
+    exactly), e.g. a path in the spontaneous curvature c0; 0 increments: empty."""
+    start, end = _real("start", start), _real("end", end)
+    n = _increments(increments)
+    values = start + (end - start) * np.arange(1, n + 1) / max(n, 1)
+    if n:
+        values[-1] = end
+    return values
+
+
+def _increments(n) -> int:
+    try:
+        ok = not isinstance(n, bool) and float(n).is_integer() and n >= 0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"increments must be an integer >= 0, got {n!r}")
+    return int(n)
+
+
 def check_schedule(targets) -> np.ndarray:
     """Validate a list of target dV/V values; each must be finite and below ``MAX_DV_OVER_V``."""
     targets = np.atleast_1d(np.asarray(targets, dtype=float))

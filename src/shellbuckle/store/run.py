@@ -7,7 +7,9 @@ Layout of a run folder ``DIR`` (format ``shellbuckle-run``, version 1)::
                               dependency versions, platform, command line of every session,
                               status (running / paused / finished / failed / interrupted)
                               + message,
-                              parent run and step for a branch
+                              parent run and step for a branch (a path in gamma or c0:
+                              protocol control "gamma"/"c0", the schedule of values and
+                              fixed_dV_over_V, the volume held)
     DIR/mesh.h5               reference mesh, written once: X0 (V, 3) float64 initial
                               positions, faces (F, 3) int64, group rest/ with the rest-state
                               arrays if any
@@ -419,15 +421,16 @@ class RunStore:
         log.info("resuming run %s in %s after step %s", self.run_id, self._path, self.last_step)
 
     def branch(self, new_path, from_step: int, *, params: Mapping | None = None,
-               protocol: Mapping | None = None,
-               extra_meta: Mapping | None = None) -> "RunStore":
+               protocol: Mapping | None = None, extra_meta: Mapping | None = None,
+               record: Mapping | None = None) -> "RunStore":
         """A new run in ``new_path`` whose step 0 is step ``from_step`` of this run.
 
         The reference mesh and rest state are this run's (energies stay measured from the same
         stress-free sphere); ``params``/``protocol`` default to this run's (pass a new protocol
-        for a re-inflation or a volume schedule). ``run.json`` records the parent folder, run
-        id, step and positions hash; calling ``branch`` again with the same arguments reopens
-        the branch for resuming.
+        for a re-inflation, a volume schedule or a parameter path). ``run.json`` records the
+        parent folder, run id, step and positions hash; calling ``branch`` again with the same
+        arguments reopens the branch for resuming. Step 0's record is the parent step's,
+        updated with ``record`` (e.g. the ``gamma`` column of a parameter path).
         """
         from_step = operator.index(from_step)
         X = self.positions(from_step)
@@ -438,9 +441,9 @@ class RunStore:
             protocol=self.protocol if protocol is None else protocol, X0=self.X0,
             faces=self.faces, rest=self.rest, extra_meta=extra_meta, parent=parent)
         if not child.steps:
-            record = self.record(from_step)
-            record.pop("step", None)
-            child.append_step(0, X, record, self.arrays(from_step))
+            first = self.record(from_step) | dict(record or {})
+            first.pop("step", None)
+            child.append_step(0, X, first, self.arrays(from_step))
         return child
 
     def close(self) -> None:
