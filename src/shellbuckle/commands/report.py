@@ -1,0 +1,41 @@
+"""``shellbuckle report DIR... [--out FILE] [--format md|html]``: the reproduction report."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    parser = sub.add_parser(
+        "report", help="write the reproduction report (our numbers next to the paper's)",
+        description="Collect the runs in DIR... (run folders, sweep folders, or folders of run "
+                    "folders; nothing is recomputed), fit the buckling thresholds vs gamma and "
+                    "write a report that puts our numbers next to every number of the paper's "
+                    "reference file (reference/quilliet2008.json): difference, verdict, the "
+                    "disagreements, the paper's inconsistent gamma/d-R captions, the figures "
+                    "and the provenance of every run.")
+    parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep folder")
+    parser.add_argument("--out", default=None,
+                        help="report file (default: reproduction_report.md or .html)")
+    parser.add_argument("--format", dest="fmt", default=None, choices=("md", "html"),
+                        help="md (Markdown, figures as PNG files beside it) or html (one file, "
+                             "figures embedded); default from the --out suffix, else md")
+    parser.add_argument("--reference", default=None, metavar="FILE",
+                        help="the paper's reference JSON (default: found beside the package, "
+                             "or $SHELLBUCKLE_REFERENCE)")
+    parser.add_argument("--no-figures", action="store_true", help="leave the figures out")
+    parser.set_defaults(func=_cmd)
+
+
+def _cmd(args) -> int:
+    from pathlib import Path
+
+    from shellbuckle.report import write_report
+
+    fmt = args.fmt
+    if fmt is None:
+        suffix = Path(args.out).suffix.lower() if args.out else ""
+        fmt = "html" if suffix in (".html", ".htm") else "md"
+    out = args.out or f"reproduction_report.{fmt}"
+    path = write_report(args.dirs, out, fmt, reference=args.reference,
+                        figures=not args.no_figures)
+    print(path)
+    return 0
