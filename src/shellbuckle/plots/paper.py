@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -94,15 +95,17 @@ def _name(run) -> str:
 
 
 def nearest_step(run, dV_over_V: float) -> int:
-    """The stored step of ``run`` whose ``dV_over_V`` is nearest to ``dV_over_V`` (the first on
-    a tie). ValueError if ``dV_over_V`` is not a number in [0, 1) or the run has no step."""
+    """The stored step of ``run`` whose ``dV_over_V`` is nearest to ``dV_over_V`` (the last on
+    a tie, so along a path in gamma or c0 at fixed volume it is the end of the path).
+    ValueError if ``dV_over_V`` is not a number in [0, 1) or the run has no step."""
     value = float(dV_over_V)
     if not (math.isfinite(value) and 0.0 <= value < 1.0):
         raise ValueError(f"dV/V must be in [0, 1), got {dV_over_V!r}")
     table = _open(run).table
     if table.empty:
         raise ValueError(f"run {run} has no finished step")
-    i = int(np.argmin(np.abs(table["dV_over_V"].to_numpy(dtype=float) - value)))
+    distance = np.abs(table["dV_over_V"].to_numpy(dtype=float) - value)
+    i = int(np.flatnonzero(distance == distance.min())[-1])
     return int(table["step"].iloc[i])
 
 
@@ -110,10 +113,11 @@ def nearest_step(run, dV_over_V: float) -> int:
 class Conformation:
     """One stored conformation and what the figures write about it.
 
-    ``run`` (folder name), ``step``, ``dV_over_V``, ``E_over_kappa`` (table values), ``gamma``,
-    ``X (V, 3)`` stored positions, ``faces``, the class ``shape``, ``n_dimples``, ``corners``,
-    ``W`` (the table's analysis columns when present, else computed), ``axis`` (dent axis or
-    ``None``) and ``H (V,)`` (the analysis' smoothed mean curvature).
+    ``run`` (folder name), ``step``, ``dV_over_V``, ``E_over_kappa`` (table values), ``gamma``
+    (in force at that step), ``X (V, 3)`` stored positions, ``faces``, the class ``shape``,
+    ``n_dimples``, ``corners``, ``W`` (the table's analysis columns when present, else
+    computed), ``axis`` (dent axis or ``None``) and ``H (V,)`` (the analysis' smoothed mean
+    curvature).
     """
 
     run: str
@@ -174,13 +178,19 @@ def conformation(run, step: int, analyzer=None) -> Conformation:
     stored = {k: _stored(row, k) for k in ("shape", "n_dimples", "corners", "W")}
     return Conformation(
         run=_name(run), step=int(step), dV_over_V=float(row["dV_over_V"]),
-        E_over_kappa=float(row["E_over_kappa"]), gamma=float(run.params.gamma), X=X,
+        E_over_kappa=float(row["E_over_kappa"]), gamma=_gamma_at(run, int(step)), X=X,
         faces=faces, shape=str(stored["shape"] if stored["shape"] is not None else c.shape),
         n_dimples=int(stored["n_dimples"] if stored["n_dimples"] is not None else c.n_dimples),
         corners=int(stored["corners"] if stored["corners"] is not None else c.corners),
         W=int(stored["W"] if stored["W"] is not None else c.W),
         axis=None if c.dent_axis is None else np.asarray(c.dent_axis),
         H=c.descriptors.geometry.H_smooth)
+
+
+def _gamma_at(run, step: int) -> float:
+    """gamma in force at ``step`` (the step's own along a path in gamma)."""
+    params_at = getattr(run, "params_at", None)
+    return float((params_at(step) if params_at else run.params).gamma)
 
 
 def _panel(fig, rect, conf: Conformation, radius: float, tilt: float):
@@ -292,11 +302,12 @@ def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
                  tilt: float = 0.0) -> Figure:
     """Fig. 7: one conformation per run at the stored step nearest to ``at`` (default 0.854),
     runs sorted by gamma, gamma as panel titles; under each: dV/V of the step, the class and W,
-    and the paper's description of its gallery panel at the same gamma if it has one."""
+    and the paper's description of its gallery panel at the same gamma if it has one (up to its
+    first comma or parenthesis)."""
     runs = sorted((_open(r) for r in runs), key=lambda r: r.params.gamma)
     if not runs:
         raise ValueError("fig7_gallery needs at least one run")
-    paper = {float(p["gamma"]): p["shape"].split(" (")[0]
+    paper = {float(p["gamma"]): re.split(r"[,(]", p["shape"])[0].strip()
              for p in (_paper(load_reference(reference), f"gallery_at_DeltaV_over_V_{at:g}")
                        or [])}
     confs = [conformation(r, nearest_step(r, at)) for r in runs]
@@ -464,8 +475,6 @@ def _soleil_ratio(paper: dict | None) -> float | None:
         return None
     if "energy_ratio" in paper:
         return float(paper["energy_ratio"])
-    import re
-
     found = re.search(r"([0-9]+(?:\.[0-9]+)?) times lower energy", paper.get("statement", ""))
     return float(found.group(1)) if found else None
 

@@ -1,0 +1,130 @@
+"""``shellbuckle plot DIR... [--out DIR] [--format png,pdf] [--at DV] [--potato DIR --capsule DIR]
+[--pair DIR DIR]``: the paper's figures that the given runs allow.
+
+For each run: Fig. 9 (E/kappa vs dV/V with the theory) and the gallery of its conformations
+(:mod:`shellbuckle.plots.paper`). With several runs: Fig. 7 (conformations at dV/V = 0.854),
+Fig. 9 of all runs together and the across-run Figs. 4, 5 and 10
+(:func:`shellbuckle.plots.across.plot_across_runs`). ``--potato``/``--capsule``: Fig. 3;
+``--pair``: Fig. 11. Prints the files written, one per line. Nothing is written in the runs.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+
+def register(sub) -> None:
+    parser = sub.add_parser(
+        "plot", help="write the paper's figures (Figs. 3, 7, 9, 11, galleries) from run folders",
+        description="Write the figures the runs DIR... allow, as PNG (300 dpi) and PDF: for "
+                    "each run, Fig. 9 (E/kappa vs dV/V with U_sphere, U_axisym, the primary "
+                    "buckling and the crossing) and the gallery of its conformations; with "
+                    "several runs, Fig. 7 (one conformation per run at dV/V = 0.854 or the "
+                    "nearest stored step), Fig. 9 of all the runs and the across-run Figs. 4, 5 "
+                    "and 10; with --potato/--capsule, Fig. 3; with --pair, Fig. 11. "
+                    "Conformations are seen along their dent axis and coloured by mean "
+                    "curvature (docs/figures.md). Prints the files written.")
+    parser.add_argument("dirs", nargs="*", metavar="DIR", help="run folder")
+    parser.add_argument("--out", default="figures", help="output folder (default: figures)")
+    parser.add_argument("--format", dest="formats", default="png,pdf",
+                        help="comma-separated formats among png, pdf, svg (default png,pdf)")
+    parser.add_argument("--at", type=float, default=None, metavar="DV",
+                        help="dV/V of Fig. 7 (default 0.854, the paper's); when given, also of "
+                             "Figs. 3 and 11 (defaults: the paper's 0.171 for Fig. 3, the "
+                             "largest dV/V both runs reached for Fig. 11)")
+    parser.add_argument("--every", type=int, default=None, metavar="K",
+                        help="the per-run gallery shows every K-th step and the last (default: "
+                             "at most 8 panels)")
+    parser.add_argument("--potato", metavar="DIR",
+                        help="run without the zero-curvature cycle, for Fig. 3 (with --capsule)")
+    parser.add_argument("--capsule", metavar="DIR",
+                        help="run with the zero-curvature cycle, for Fig. 3 (with --potato)")
+    parser.add_argument("--pair", nargs=2, metavar=("DIR_A", "DIR_B"),
+                        help="two runs at the same gamma reaching one dV/V by different paths, "
+                             "for Fig. 11")
+    parser.add_argument("--reference", default=None, metavar="FILE",
+                        help="the paper's reference JSON (default: found beside the package, "
+                             "or $SHELLBUCKLE_REFERENCE); without it the figures show ours only")
+    parser.set_defaults(func=_cmd)
+
+
+def _formats(text: str) -> tuple:
+    from ..plots.paper import FORMATS
+
+    formats = tuple(f.strip().lower() for f in text.split(",") if f.strip())
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        raise ValueError(f"--format {text!r}: formats must be among {', '.join(FORMATS)}")
+    return formats
+
+
+def _run(path):
+    from ..run import Run
+
+    run = Run.open(path)  # ValueError naming the folder when it is not a run
+    if not run.steps:
+        raise ValueError(f"{path} holds a run with no finished step yet")
+    return run
+
+
+def _stems(runs) -> list[str]:
+    """One file stem per run: its folder name, made unique with a suffix when names repeat."""
+    stems, seen = [], {}
+    for run in runs:
+        name = Path(run.path).name
+        seen[name] = seen.get(name, 0) + 1
+        stems.append(name if seen[name] == 1 else f"{name}_{seen[name]}")
+    return stems
+
+
+def _cmd(args) -> int:
+    from ..plots import paper
+
+    formats = _formats(args.formats)
+    if args.at is not None and not (math.isfinite(args.at) and 0.0 <= args.at < 1.0):
+        raise ValueError(f"--at {args.at!r}: dV/V must be in [0, 1)")
+    if (args.potato is None) != (args.capsule is None):
+        raise ValueError("--potato and --capsule go together (Fig. 3 compares the two runs)")
+    if not args.dirs and args.potato is None and args.pair is None:
+        raise ValueError("nothing to plot: give run folders DIR..., --potato/--capsule or "
+                         "--pair")
+    runs = [_run(d) for d in args.dirs]
+    potato = (_run(args.potato), _run(args.capsule)) if args.potato is not None else None
+    pair = tuple(_run(d) for d in args.pair) if args.pair is not None else None
+    reference = paper.load_reference(args.reference)
+    out = Path(args.out)
+    written: list[Path] = []
+    for run, stem in zip(runs, _stems(runs)):
+        written += paper.save(paper.fig9_energy([run]), out / f"{stem}_fig09_energy", formats)
+        written += paper.save(paper.run_gallery(run, every=args.every), out / f"{stem}_gallery",
+                              formats)
+    if len(runs) > 1:
+        at = paper.GALLERY_DV_OVER_V if args.at is None else args.at
+        written += paper.save(paper.fig7_gallery(runs, at=at, reference=reference),
+                              out / "fig07_gallery", formats)
+        written += paper.save(paper.fig9_energy(runs), out / "fig09_energy", formats)
+        written += _across([Path(r.path) for r in runs], out, formats, reference)
+    if potato is not None:
+        written += paper.save(paper.fig3_potato_capsule(*potato, at=args.at, reference=reference),
+                              out / "fig03_potato_capsule", formats)
+    if pair is not None:
+        written += paper.save(paper.fig11_paths(*pair, at=args.at, reference=reference),
+                              out / "fig11_paths", formats)
+    for path in written:
+        print(path)
+    return 0
+
+
+def _across(paths, out: Path, formats, reference) -> list[Path]:
+    """Figs. 4, 5 and 10 by :func:`shellbuckle.plots.across.plot_across_runs` (skipped, with a
+    warning, when that module is not available)."""
+    try:
+        from ..plots.across import plot_across_runs
+    except ImportError as exc:
+        log.warning("across-run figures (Figs. 4, 5, 10) skipped: %s", exc)
+        return []
+    return [Path(p) for p in plot_across_runs(paths, out, formats, reference=reference)]

@@ -1,0 +1,125 @@
+"""``shellbuckle plot``: the files it writes and prints, and bad input refused with exit code 2."""
+
+import logging
+import sys
+
+import pytest
+
+from shellbuckle.cli import main
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.plots import paper
+from shellbuckle.run import deflate
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Two tiny real deflations (162 vertices, 3 steps): with and without the c0 cycle."""
+    base = tmp_path_factory.mktemp("cli_plot_runs")
+    params = ShellParameters.from_gamma(743.0, nu=1.0 / 3.0)
+    cycle = deflate(icosphere(4), params, dv=0.06, until=0.12, out=base / "cycle", seed=0)
+    plain = deflate(icosphere(4), params, dv=0.06, until=0.12, out=base / "plain", seed=0,
+                    c0_cycle=False)
+    return cycle.path, plain.path
+
+
+def _printed(capsys):
+    return [line for line in capsys.readouterr().out.splitlines() if line.strip()]
+
+
+def _valid(path):
+    data = path.read_bytes()
+    if path.suffix == ".png":
+        return data[:8] == PNG and len(data) > 10_000
+    if path.suffix == ".pdf":
+        return data[:5] == b"%PDF-" and data.rstrip().endswith(b"%%EOF")
+    return False
+
+
+def test_one_run_gives_its_energy_figure_and_gallery(runs, tmp_path, capsys):
+    cycle, _ = runs
+    out = tmp_path / "figs"
+    assert main(["plot", str(cycle), "--out", str(out)]) == 0
+    printed = _printed(capsys)
+    expected = {f"cycle_{name}.{fmt}" for name in ("fig09_energy", "gallery")
+                for fmt in ("png", "pdf")}
+    assert {p.name for p in out.iterdir()} == expected
+    assert sorted(printed) == sorted(str(out / name) for name in expected)
+    assert all(_valid(out / name) for name in expected)
+
+
+def test_several_runs_pairs_and_formats(runs, tmp_path, capsys, monkeypatch):
+    cycle, plain = runs
+    seen = {}
+    original = paper.fig7_gallery
+
+    def fig7(runs_, **kw):
+        seen["at"] = kw["at"]
+        return original(runs_, **kw)
+
+    monkeypatch.setattr(paper, "fig7_gallery", fig7)
+    out = tmp_path / "figs"
+    code = main(["plot", str(cycle), str(plain), "--out", str(out), "--format", "png",
+                 "--at", "0.1", "--potato", str(plain), "--capsule", str(cycle),
+                 "--pair", str(plain), str(cycle)])
+    assert code == 0
+    printed = _printed(capsys)
+    names = {p.name for p in out.iterdir()}
+    assert sorted(printed) == sorted(str(out / n) for n in names)  # all written, all printed
+    assert all(n.endswith(".png") for n in names)
+    assert {"cycle_fig09_energy.png", "cycle_gallery.png", "plain_fig09_energy.png",
+            "plain_gallery.png", "fig07_gallery.png", "fig09_energy.png",
+            "fig03_potato_capsule.png", "fig11_paths.png"} <= names
+    assert len(names) > 8  # and the across-run figures (plots.across)
+    assert all(_valid(out / n) for n in names)
+    assert seen["at"] == 0.1
+
+
+def test_across_run_figures_are_skipped_when_unavailable(runs, tmp_path, capsys, monkeypatch,
+                                                         caplog):
+    monkeypatch.setitem(sys.modules, "shellbuckle.plots.across", None)  # import fails
+    out = tmp_path / "figs"
+    with caplog.at_level(logging.WARNING):
+        assert main(["plot", *map(str, runs), "--out", str(out), "--format", "pdf"]) == 0
+    assert "across-run figures" in caplog.text
+    names = {p.name for p in out.iterdir()}
+    assert names == {"cycle_fig09_energy.pdf", "cycle_gallery.pdf", "plain_fig09_energy.pdf",
+                     "plain_gallery.pdf", "fig07_gallery.pdf", "fig09_energy.pdf"}
+    assert len(_printed(capsys)) == 6
+
+
+def test_a_run_named_twice_gets_distinct_files(runs, tmp_path, capsys):
+    cycle, _ = runs
+    out = tmp_path / "figs"
+    assert main(["plot", str(cycle), str(cycle), "--out", str(out), "--format", "png"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"cycle_gallery.png", "cycle_2_gallery.png"} <= names
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--at", "1.5"], "1.5"),
+    (["--at", "-0.2"], "-0.2"),
+    (["--at", "nan"], "nan"),
+    (["--format", "png,gif"], "gif"),
+    (["--potato", "X"], "--capsule"),
+])
+def test_bad_options_exit_2_naming_the_value(runs, tmp_path, capsys, extra, message):
+    extra = [str(runs[0]) if e == "X" else e for e in extra]
+    assert main(["plot", str(runs[0]), "--out", str(tmp_path / "f"), *extra]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (tmp_path / "f").exists()  # refused before any work
+
+
+def test_bad_folders_exit_2(tmp_path, capsys):
+    missing = tmp_path / "nope"
+    assert main(["plot", str(missing), "--out", str(tmp_path / "f")]) == 2
+    assert str(missing) in capsys.readouterr().err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["plot", str(empty), "--out", str(tmp_path / "f")]) == 2
+    assert str(empty) in capsys.readouterr().err
+    assert main(["plot", "--out", str(tmp_path / "f")]) == 2
+    assert "nothing to plot" in capsys.readouterr().err
