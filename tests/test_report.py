@@ -2,6 +2,7 @@
 independently here from each run's own thresholds, the paper's inconsistent captions found
 from gamma = 8 (R/d)^2, one-file HTML, and bad input through the CLI (exit 2)."""
 
+import json
 import math
 
 import numpy as np
@@ -118,8 +119,6 @@ def test_html_is_one_file_with_the_figures(tiny_runs, reference, tmp_path):  # n
 
 def test_cli_writes_and_refuses_bad_input(tiny_runs, reference, tmp_path, capsys):  # noqa: F811
     ref = tmp_path / "ref.json"
-    import json
-
     ref.write_text(json.dumps(reference))
     out = tmp_path / "rep.md"
     assert main(["report", str(tiny_runs["c"]), "--out", str(out), "--reference", str(ref),

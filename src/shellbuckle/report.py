@@ -476,8 +476,8 @@ def _reinflation(ctx, key, value, top, name):
     for _, row in runs.iterrows():
         t = ctx.table(row)
         last = t.iloc[-1]
-        summaries.append(f"gamma {fmt_number(row['gamma'])}: dV/V {fmt_number(t['dV_over_V'].iloc[0])}"
-                         f" -> {fmt_number(last['dV_over_V'])}, {last['shape']}"
+        summaries.append(f"gamma {fmt_number(row['gamma'])}: dV/V "
+                         f"{fmt_number(t['dV_over_V'].iloc[0])} -> {fmt_number(last['dV_over_V'])}, {last['shape']}"
                          f" ({int(last['corners']) if pd.notna(last['corners']) else 0} corners,"
                          f" W = {int(last['W']) if pd.notna(last['W']) else 0})")
     return info(key, value, "; ".join(summaries), "compare by eye (shape statement)")

@@ -138,8 +138,8 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
         ax.axhline(1.0, color="0.8", lw=0.8)
         values = runs[[f"{n}_dV_over_V" for n in _MARKERS]].to_numpy(float)
         bottom = min(0.01, np.nanmin(values) / 1.5) if np.isfinite(values).any() else 0.01
-        ax.set(xscale="log", yscale="log", xlabel=r"Föppl–von Kármán number $\gamma = AR^2/\kappa$",
-               ylabel=r"threshold $\Delta V/V$", ylim=(bottom, 1.5))
+        ax.set(xscale="log", yscale="log",
+               xlabel=r"Föppl–von Kármán number $\gamma = AR^2/\kappa$", ylabel=r"threshold $\Delta V/V$", ylim=(bottom, 1.5))
         ax.set_title(rf"Buckling thresholds vs $\gamma$ ($\nu$ = {nu:.3g}; paper Fig. 10)")
         ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False, ncol=1)
     if path is not None:
