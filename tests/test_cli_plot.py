@@ -41,13 +41,16 @@ def _valid(path):
 def test_one_run_gives_its_energy_figure_and_gallery(runs, tmp_path, capsys):
     cycle, _ = runs
     out = tmp_path / "figs"
-    assert main(["plot", str(cycle), "--out", str(out)]) == 0
+    assert main(["plot", str(cycle), "--out", str(out), "--dpi", "120"]) == 0
     printed = _printed(capsys)
     expected = {f"cycle_{name}.{fmt}" for name in ("fig09_energy", "gallery")
                 for fmt in ("png", "pdf")}
     assert {p.name for p in out.iterdir()} == expected
     assert sorted(printed) == sorted(str(out / name) for name in expected)
     assert all(_valid(out / name) for name in expected)
+    # the PNG's width (header bytes 16-20) is the figure's width at --dpi
+    width = int.from_bytes((out / "cycle_fig09_energy.png").read_bytes()[16:20], "big")
+    assert width == round(paper.fig9_energy(cycle).get_figwidth() * 120)
 
 
 def test_several_runs_pairs_and_formats(runs, tmp_path, capsys, monkeypatch):
@@ -104,6 +107,7 @@ def test_a_run_named_twice_gets_distinct_files(runs, tmp_path, capsys):
     (["--at", "nan"], "nan"),
     (["--format", "png,gif"], "gif"),
     (["--potato", "X"], "--capsule"),
+    (["--dpi", "10"], "10"),
 ])
 def test_bad_options_exit_2_naming_the_value(runs, tmp_path, capsys, extra, message):
     extra = [str(runs[0]) if e == "X" else e for e in extra]
