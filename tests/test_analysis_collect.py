@@ -136,6 +136,13 @@ def test_scripted_run_known_events_and_W(tiny_runs):
     assert wrinkle_average(table) == (row["W_mean"], row["W_std"], row["W_steps"])
 
 
+def test_parent_folder_of_runs_and_sweeps(tiny_runs):
+    # the tiny_runs root holds two runs, the scripted run and the sweep folder
+    root = tiny_runs["b"].parent
+    df = collect_runs(root)
+    assert sorted(df["name"]) == ["g3000_s0", "g300_s0", "g300_s1", "scripted"]
+
+
 def test_bad_paths(tmp_path):
     with pytest.raises(ValueError, match="does not exist"):
         collect_runs(tmp_path / "missing")

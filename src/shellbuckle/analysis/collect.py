@@ -44,7 +44,8 @@ REFERENCE_NAME = "quilliet2008.json"
 # --------------------------------------------------------------------------- finding runs
 
 def _run_folders(path: Path) -> list[Path]:
-    """The run folders a path stands for (ValueError if none)."""
+    """The run folders a path stands for: itself, the runs of a sweep, or the run and sweep
+    folders directly inside it (ValueError if none)."""
     from ..store.catalogue import SWEEP_JSON, read_sweep_file
     from ..store.run import RUN_JSON
 
@@ -62,7 +63,12 @@ def _run_folders(path: Path) -> list[Path]:
             log.info("%s: %d of %d runs of the sweep have no run folder yet (pending or failed "
                      "before starting); skipped", path, len(names) - len(found), len(names))
         return found
-    found = sorted(p for p in path.iterdir() if p.is_dir() and (p / RUN_JSON).exists())
+    found = []
+    for sub in sorted(p for p in path.iterdir() if p.is_dir()):
+        if (sub / RUN_JSON).exists():
+            found.append(sub)
+        elif (sub / SWEEP_JSON).exists():
+            found += _run_folders(sub)
     if not found:
         raise ValueError(f"{str(path)!r} is neither a run folder (no {RUN_JSON}) nor a sweep "
                          f"folder (no {SWEEP_JSON}) nor a folder of run folders")
@@ -208,7 +214,7 @@ def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = N
     """One row per run folder (columns :data:`COLUMNS`).
 
     ``paths``: run folders, sweep folders (the runs of their ``sweep.json`` that have a
-    folder), or folders whose sub-folders are runs; each run appears once. Per row: ``path``
+    folder), or folders whose sub-folders are runs or sweeps; each run appears once. Per row: ``path``
     (absolute), ``name``, ``parent`` (the run it branches from), the parameters ``gamma``,
     ``nu`` and protocol fields ``seed``, ``jiggle``, ``temperature``, ``c0_cycle``,
     ``method``, ``bending``, ``control``, ``dv`` (volume step, the median of the schedule's
