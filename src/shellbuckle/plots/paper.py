@@ -317,7 +317,7 @@ def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
         if c.gamma in paper:
             lines.append(f"paper: {paper[c.gamma]}")
         captions.append("\n".join(lines))
-    width = COLUMN if len(confs) <= 3 else PAGE
+    width = COLUMN if len(confs) <= 2 else PAGE
     fig = _row_figure(confs, captions, width, f"$\\Delta V/V \\approx$ {at:g}", [], tilt,
                       titles=[f"$\\gamma$ = {c.gamma:g}" for c in confs])
     return fig
