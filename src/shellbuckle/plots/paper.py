@@ -54,6 +54,8 @@ COLUMN = 3.4
 PAGE = 7.0
 #: The paper's gallery volume (Fig. 7).
 GALLERY_DV_OVER_V = 0.854
+#: Panels per row of Fig. 7 at page width (1.4 in each).
+GALLERY_COLUMNS = 5
 FORMATS = ("png", "pdf", "svg")
 
 
@@ -214,29 +216,33 @@ def _colorbar(fig, ax_rendering, rect, orientation="horizontal"):
 
 
 def _row_figure(confs, captions, width: float, title: str | None, footer: list[str],
-                tilt: float, titles=None) -> Figure:
-    """Renderings side by side (square panels), a caption under each, a colour bar and footer
-    lines below, a title above. Layout in inches."""
+                tilt: float, titles=None, ncols: int | None = None) -> Figure:
+    """Renderings in rows of ``ncols`` (default: one row) square panels, a caption under each,
+    a colour bar and footer lines below, a title above. Layout in inches."""
     n = len(confs)
-    side = width / n
+    ncols = n if ncols is None else max(1, min(int(ncols), n))
+    nrows = math.ceil(n / ncols)
+    side = width / ncols
     caption_h = 0.13 * max(c.count("\n") + 1 for c in captions)
     title_h = 0.25 if title else 0.0
     panel_title_h = 0.16 if titles else 0.0
+    row_h = panel_title_h + side + caption_h
     bar_h = 0.55
     footer_h = 0.14 * len(footer) + (0.05 if footer else 0.0)
-    height = title_h + panel_title_h + side + caption_h + bar_h + footer_h
+    height = title_h + nrows * row_h + bar_h + footer_h
     fig = Figure(figsize=(width, height))
     radius = _radius(confs)
     axes = []
-    y0 = footer_h + bar_h + caption_h
     for i, (conf, caption) in enumerate(zip(confs, captions)):
-        ax = _panel(fig, (i * side / width, y0 / height, side / width, side / height), conf,
+        row, col = divmod(i, ncols)
+        y0 = footer_h + bar_h + (nrows - 1 - row) * row_h + caption_h
+        ax = _panel(fig, (col * side / width, y0 / height, side / width, side / height), conf,
                     radius, tilt)
         axes.append(ax)
-        fig.text((i + 0.5) * side / width, (y0 - 0.03) / height, caption, ha="center",
-                 va="top", fontsize=7, linespacing=1.25)
+        fig.text((col + 0.5) * side / width, (y0 - 0.03) / height, caption, ha="center",
+                 va="top", fontsize=7 if side >= 1.6 else 6.5, linespacing=1.25)
         if titles:
-            fig.text((i + 0.5) * side / width, (y0 + side + 0.02) / height, titles[i],
+            fig.text((col + 0.5) * side / width, (y0 + side + 0.02) / height, titles[i],
                      ha="center", va="bottom", fontsize=8)
     _colorbar(fig, axes[0], (0.3, (footer_h + 0.38) / height, 0.4, 0.05 / height))
     for j, line in enumerate(footer):
@@ -301,7 +307,7 @@ def fig3_potato_capsule(potato, capsule, *, at: float | None = None, reference=N
 def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
                  tilt: float = 0.0) -> Figure:
     """Fig. 7: one conformation per run at the stored step nearest to ``at`` (default 0.854),
-    runs sorted by gamma, gamma as panel titles; under each: dV/V of the step, the class and W,
+    runs sorted by gamma, in rows of at most ``GALLERY_COLUMNS``, gamma as panel titles; under each: dV/V of the step, the class and W,
     and the paper's description of its gallery panel at the same gamma if it has one (up to its
     first comma or parenthesis)."""
     runs = sorted((_open(r) for r in runs), key=lambda r: r.params.gamma)
@@ -319,7 +325,8 @@ def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
         captions.append("\n".join(lines))
     width = COLUMN if len(confs) <= 2 else PAGE
     fig = _row_figure(confs, captions, width, f"$\\Delta V/V \\approx$ {at:g}", [], tilt,
-                      titles=[f"$\\gamma$ = {c.gamma:g}" for c in confs])
+                      titles=[f"$\\gamma$ = {c.gamma:g}" for c in confs],
+                      ncols=min(len(confs), GALLERY_COLUMNS))
     return fig
 
 
