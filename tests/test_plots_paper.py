@@ -206,3 +206,15 @@ def test_nearest_step_is_the_closest_stored_volume(runs):
     for target in np.linspace(0.0, 0.99, 23):
         k = paper.nearest_step(run, target)
         assert abs(dv[run.steps.index(k)] - target) == np.abs(dv - target).min()
+
+
+def test_fig7_of_many_runs_wraps_into_rows_of_equal_panels(runs):
+    fig = paper.fig7_gallery(list(runs) * 3, at=0.1, reference={})
+    boxes = [ax.get_position() for ax in fig.panels]
+    assert len(boxes) == 6
+    ncols = paper.GALLERY_COLUMNS
+    assert len({round(b.y0, 9) for b in boxes[:ncols]}) == 1  # first row
+    assert boxes[ncols].y0 < boxes[0].y0 - boxes[0].height  # second row, below the first
+    assert len({round(b.width * fig.get_figwidth(), 9) for b in boxes}) == 1
+    assert fig.get_figwidth() == paper.PAGE
+    _readable(fig)
