@@ -140,9 +140,9 @@ class Rendering:
     (rotation ``(3, 3)``, rows ``right``, ``up``, ``e``), ``centre (3,)`` (the stored point at
     the picture's centre), ``radius`` (half-width of the picture), ``visible (F,)`` (faces
     turned towards the camera, the ones drawn), ``shade (F,)`` (Lambert factor of each face;
-    the drawn colour is the colour of its value times this), ``face_values (F,)`` (curvature per face, or
-    ``None``), ``axis`` (the dent axis used, or ``None``), ``mappable`` (for a colour bar, or
-    ``None``).
+    the drawn colour is the colour of its value times this), ``face_values (F,)`` (curvature
+    per face, or ``None``), ``axis`` (the dent axis used, or ``None``), ``mappable`` (for a
+    colour bar, or ``None``).
     """
 
     collection: object
