@@ -245,6 +245,9 @@ def _register_deflate(sub) -> None:
                        help="bending discretization (default juelicher)")
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
                        help="minimizer (default newton)")
+    proto.add_argument("--max-iter", type=int, default=200,
+                       help="iterations of each minimization at most (default 200; a small "
+                            "budget with --method cg quenches as a fixed Surface Evolver script)")
     proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
     branch = parser.add_argument_group("continue from a stored step (re-inflation, other paths)")
     branch.add_argument("--from", dest="from_run", metavar="DIR",
@@ -288,7 +291,7 @@ def _cmd_deflate(args) -> int:
     # refuse bad protocol options before any mesh is built
     options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                    temperature=args.temperature, seed=args.seed, bending=args.bending,
-                   method=args.method, c0=args.c0)
+                   method=args.method, max_iter=args.max_iter, c0=args.c0)
     if pressures is not None:
         Protocol(schedule=tuple(pressures), control="pressure", **options)
     elif schedule is None:
@@ -313,7 +316,8 @@ def _cmd_deflate(args) -> int:
     run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                   temperature=args.temperature, seed=args.seed,
-                  bending=args.bending, method=args.method, c0=c0, out=args.out,
+                  bending=args.bending, method=args.method, max_iter=args.max_iter, c0=c0,
+                  out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
                   pressures=pressures)
     return _report_run(run, plot=not args.no_plot)

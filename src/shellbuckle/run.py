@@ -122,7 +122,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
-            stop_at_contact: bool = True, c0: float | None = None, out=None,
+            max_iter: int = 200, stop_at_contact: bool = True, c0: float | None = None, out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
@@ -137,13 +137,17 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
     instead of the initial mesh. The jiggle is Surface Evolver's at ``temperature`` (default
     0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length; give at most one.
+    ``max_iter`` bounds the iterations of each minimization: with ``method="cg"`` or ``"gd"``
+    a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
+    paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
     """
     from .mesh.random_sphere import random_sphere
 
     params = params or ShellParameters.from_gamma(2333.0, nu=1.0 / 3.0)
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
-                   bending=bending, method=method, tol=tol, stop_at_contact=stop_at_contact)
+                   bending=bending, method=method, tol=tol, max_iter=max_iter,
+                   stop_at_contact=stop_at_contact)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")

@@ -129,6 +129,8 @@ class Protocol:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.c0 is not None and not np.isfinite(self.c0):
             raise ValueError(f"c0 must be finite, got {self.c0!r}")
+        if not (isinstance(self.max_iter, (int, np.integer)) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
         if not (0 < self.tol < 1e-2):
             raise ValueError(f"tol must be in (0, 1e-2), got {self.tol!r}")
 
