@@ -124,7 +124,9 @@ class SweepSpec:
       [0, 0.5], replacing the temperature for those runs; default none), ``bending``
       (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``).
 
-    ``tol`` (minimizer tolerance) and ``stop_at_contact`` are the same for every run. Each value
+    ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
+    with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
+    for every run. Each value
     is checked here (ValueError naming it); a combination that cannot run (``until < dv`` for
     one pair) fails that run only, unless no pair of ``dv`` and ``until`` can run at all.
     """
@@ -142,6 +144,7 @@ class SweepSpec:
     bending: tuple = ("juelicher",)
     method: tuple = ("newton",)
     tol: float = 1e-9
+    max_iter: int = 200
     stop_at_contact: bool = True
 
     def __post_init__(self):
@@ -182,6 +185,7 @@ class SweepSpec:
                     raise ValueError(f"{name} {v!r} is not known; allowed: {', '.join(allowed)}")
             put(name, values)
         put("tol", _real("tol", self.tol, 0.0, 1e-2, allowed="0 < tol < 1e-2"))
+        put("max_iter", _integer("max_iter", self.max_iter, 1, "integers >= 1"))
         if not isinstance(self.stop_at_contact, bool):
             raise ValueError(f"stop_at_contact must be true or false, got {self.stop_at_contact!r}")
         if not any(u >= d for d in self.dv for u in self.until):
@@ -256,7 +260,8 @@ class SweepSpec:
                      "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
                      "c0_cycle": cycle, "jiggle": jig, "temperature": temp, "bending": bend,
                      "method": method,
-                     "tol": self.tol, "stop_at_contact": self.stop_at_contact}
+                     "tol": self.tol, "max_iter": self.max_iter,
+                     "stop_at_contact": self.stop_at_contact}
             name = run_name(point)
             if name in names:
                 raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
@@ -273,7 +278,8 @@ class SweepSpec:
 def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
-    ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>``, ``_<bending>``, ``_<method>``), e.g. ``g2333_nu0.333_v3594_s0``
+    ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>``, ``_<bending>``, ``_<method>``,
+    ``_it<max_iter>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
     mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
@@ -292,6 +298,8 @@ def run_name(point: dict) -> str:
         name += f"_{point['bending']}"
     if point["method"] != "newton":
         name += f"_{point['method']}"
+    if point.get("max_iter", 200) != 200:
+        name += f"_it{point['max_iter']}"
     return name
 
 
@@ -347,7 +355,8 @@ def _deflate(point: dict, folder: Path):
                            c0_cycle=point["c0_cycle"], jiggle=point["jiggle"],
                            temperature=point.get("temperature"),
                            seed=point["seed"], bending=point["bending"], method=point["method"],
-                           tol=point["tol"], stop_at_contact=point["stop_at_contact"],
+                           tol=point["tol"], max_iter=point.get("max_iter", 200),
+                           stop_at_contact=point["stop_at_contact"],
                            out=folder, progress=False)
         except ValueError:
             if not _writer_active(folder):
