@@ -158,7 +158,15 @@ def _differences(stored, wanted, where: str = "") -> list[str]:
         return out
     same = stored == wanted or (isinstance(stored, float) and isinstance(wanted, float)
                                 and math.isnan(stored) and math.isnan(wanted))
-    return [] if same else [f"{where}: stored {stored!r}, requested {wanted!r}"]
+    return [] if same else [f"{where}: stored {_short(stored)}, requested {_short(wanted)}"]
+
+
+def _short(value, limit: int = 6) -> str:
+    """``repr`` of a value; a long list by its first two values, its last and its length
+    (a schedule of 50 volumes is not printed whole in an error message)."""
+    if isinstance(value, (list, tuple)) and len(value) > limit:
+        return f"[{value[0]!r}, {value[1]!r}, ..., {value[-1]!r}] ({len(value)} values)"
+    return repr(value)
 
 
 def _now() -> str:
