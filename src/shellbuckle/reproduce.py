@@ -23,7 +23,9 @@ What is run (:class:`Study`), in ``OUT``:
   far enough) is taken from it instead;
 - ``OUT/paths/``: the path of Fig. 11, the capsule taken from gamma = 743 to 15163 at fixed
   volume in equal ratios (:func:`shellbuckle.run.continue_in_parameter`), compared with the
-  bowl (:func:`shellbuckle.run.compare_paths`; paper: 1.42 times lower energy);
+  bowl (:func:`shellbuckle.run.compare_paths`; paper: 1.42 times lower energy); and the
+  re-inflation of §4.4 (the gamma = 2916 deflation from dV/V = 0.474 back to 0.209 in steps
+  of -dv; the paper finds 3 and 4 wrinkles);
 - ``OUT/figures/``: Figs. 3, 4, 5, 7, 9, 10 and 11 (:mod:`shellbuckle.plots.paper`,
   :mod:`shellbuckle.plots.across`), PNG and PDF;
 - ``OUT/report.md``, ``OUT/report.html``: the reproduction report
@@ -67,6 +69,8 @@ def potato_quench(n_vertices: int) -> dict:
     return {"method": ("cg",), "max_iter": max(40, round(n_vertices / 12))}
 
 
+REINFLATION_GAMMA, REINFLATION_FROM, REINFLATION_TO = 2916.0, 0.474, 0.209
+"""Paper §4.4: re-inflation of the gamma = 2916 shell from dV/V = 0.474 to 0.209."""
 SOLEIL_GAMMA, SOLEIL_DV_OVER_V = 15163.0, 0.645
 """Fig. 11: the conformation reached from a capsule at lower gamma, gamma = 15163, dV/V = 0.645."""
 SOLEIL_FROM_GAMMA = 743.0
@@ -263,6 +267,44 @@ def _fig11_path(study: Study, out: Path, where: dict, progress: bool) -> dict | 
     return result
 
 
+def _reinflation(study: Study, out: Path, main_spec, progress: bool) -> dict | None:
+    """The paper's re-inflation (§4.4, Fig. 8): from the deflation at gamma = 2916 (or the
+    study's gamma nearest to it) at the stored step nearest dV/V = 0.474, volume steps of
+    -dv back to 0.209; the shape and W at both ends."""
+    from .analysis import classify
+    from .run import Run, continue_from
+
+    gammas = sorted({p["gamma"] for p in main_spec.points()})
+    if not gammas:
+        return None
+    gamma = min(gammas, key=lambda g: abs(math.log(g / REINFLATION_GAMMA)))
+    name = _point_in(main_spec, gamma=gamma, seed=0, n_vertices=study.vertices[0])
+    try:
+        parent = Run.open(out / "sweep" / name)
+    except ValueError as exc:
+        log.warning("re-inflation skipped: %s", exc)
+        return None
+    table = parent.table
+    k = int(table["step"].iloc[(table["dV_over_V"] - REINFLATION_FROM).abs().argmin()])
+    start = float(table["dV_over_V"].iloc[k])
+    if start <= REINFLATION_TO + study.dv:
+        log.warning("re-inflation skipped: the gamma = %g run stopped at dV/V = %.3f", gamma,
+                    float(table["dV_over_V"].iloc[-1]))
+        return None
+    folder = out / "paths" / f"{name}_reinflate_from{k}"
+    run = continue_from(parent, k, folder, dv=-study.dv, until=REINFLATION_TO,
+                        progress=progress)
+    ends = {}
+    for label, (r, step) in {"from": (parent, k), "to": (run, run.steps[-1])}.items():
+        c = classify(r.positions(step), r.faces)
+        ends[label] = {"dV_over_V": float(r.table["dV_over_V"].iloc[step]), "shape": c.shape,
+                       "W": int(c.W), "corners": int(c.corners),
+                       "E_over_kappa": float(r.table["E_over_kappa"].iloc[step])}
+    return {"gamma": gamma, "parent": str(parent.path), "path": str(run.path), **ends,
+            "paper": "gamma 2916, 0.474 -> 0.209: a depression with 4-fold symmetry; "
+                     "3 and 4 wrinkles on re-inflation"}
+
+
 def _fig3_numbers(out: Path, where: dict) -> dict | None:
     from .run import compare_paths
 
@@ -405,6 +447,8 @@ def reproduce_paper(out, study: Study | None = None, *, workers: int | None = No
     t_runs = time.perf_counter() - t0
     where = sweeps["where"]
     fig11 = _fig11_path(study, out, where, progress) if study.special else None
+    reinflation = (_reinflation(study, out, study.sweep_spec(), progress)
+                   if study.special else None)
     t_path = time.perf_counter() - t0 - t_runs
     missing: list[str] = []
     written = _mesh_convergence(sweeps["catalogues"].get("sweep"), out)
@@ -424,6 +468,7 @@ def reproduce_paper(out, study: Study | None = None, *, workers: int | None = No
                          for role, (kind, name, steps) in where.items()},
         "fig3": _fig3_numbers(out, where) if study.special else None,
         "fig11": fig11,
+        "reinflation": reinflation,
         "written": [str(p) for p in written],
         "missing": missing,
         "wall_s": {"runs": t_runs, "fig11_path": t_path,
