@@ -67,3 +67,39 @@ def test_protocol_jiggle_options():
     old.pop("jiggle")
     assert Protocol.from_dict(old).jiggle == 0.01
     assert Protocol.from_dict(default.to_dict()) == default
+
+
+def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(monkeypatch):
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+
+    mesh = icosphere(3)
+    params = ShellParameters.from_gamma(271.0, nu=1.0 / 3.0)
+    protocol = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
+    ctx, state = deflate.init(mesh, params, protocol)
+    minimize, calls = deflate._minimize, []
+
+    def first_fails(*args, **kwargs):
+        result = minimize(*args, **kwargs)
+        calls.append(result.success)
+        return dataclasses.replace(result, success=False) if len(calls) == 1 else result
+
+    monkeypatch.setattr(deflate, "_minimize", first_fails)
+    state, record = deflate.step(ctx, state)
+    sigma0 = protocol.jiggle_sigma(mesh.X, mesh.X, mesh.topology.edges)
+    assert record["jiggle_attempts"] == 2 and record["converged"]
+    assert record["jiggle_sigma"] == pytest.approx(sigma0 / 2)
+    assert len(calls) == 4  # the failed attempt skips the c0 cycle; the retry runs it
+    # the retry starts again from the step's start, not from the failed attempt
+    monkeypatch.setattr(deflate, "_minimize", minimize)
+    again = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
+    ctx2, s2 = deflate.init(mesh, params, again)
+    rng = np.random.default_rng([4, 1, 1])
+    X = jiggle(s2.X, mesh.topology.edges, 0.0, rng, sigma=sigma0 / 2)
+    V = ctx2.V0 * (1 - 0.019)
+    r = minimize(ctx2, ctx2.energy, X, V)
+    r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V)
+    r = minimize(ctx2, ctx2.energy, r.x, V)
+    assert np.allclose(r.x, state.X, atol=1e-12)

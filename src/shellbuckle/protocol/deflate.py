@@ -53,6 +53,13 @@ CONTROLS = ("volume", "pressure", "gamma", "c0")
 PARAMETER_CONTROLS = ("gamma", "c0")
 """Controls whose schedule is a parameter path at the fixed volume ``fixed_dV_over_V``."""
 
+JIGGLE_RETRIES = 3
+"""A Newton minimization that does not converge after the jiggle (a large jiggle can fold a
+triangle over one of its edges, which keeps the triangle's metric and so costs no stretching
+energy, and the minimizer may stay tangled) is started again from the step's start with a jiggle of half the
+amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; the
+table records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
+
 DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
 """Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate
 (the paper's runs were made with Surface Evolver's jiggle; see :mod:`.jiggle`)."""
@@ -282,19 +289,30 @@ def step(ctx: Context, state: State):
         target, pressure = p.schedule[k - 1], None
         V_target = ctx.V0 * (1.0 - target)
     sigma = p.jiggle_sigma(ctx.mesh.X, state.X, ctx.mesh.topology.edges)
-    X = jiggle(state.X, ctx.mesh.topology.edges, 0.0, step_rng(p.seed, k), sigma=sigma)
-    result = _minimize(ctx, ctx.energy, X, V_target, pressure)
-    iterations = result.nit
-    E_before = result.fun
-    if p.c0_cycle:
-        flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure)
-        result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure)
-        iterations += flat.nit + result.nit
+    iterations = 0
+    retries = JIGGLE_RETRIES if p.method in ("newton", "alternate") and sigma > 0 else 0
+    for attempt in range(retries + 1):
+        rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
+        X = jiggle(state.X, ctx.mesh.topology.edges, 0.0, rng, sigma=sigma)
+        result = _minimize(ctx, ctx.energy, X, V_target, pressure)
+        iterations += result.nit
+        E_before = result.fun
+        if p.c0_cycle and (result.success or attempt == retries):
+            flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure)
+            result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure)
+            iterations += flat.nit + result.nit
+        if result.success or attempt == retries:
+            break
+        log.warning("step %d: no convergence after a jiggle of std %.3g (%s); jiggling again "
+                    "with half of it", k, sigma, result.message)
+        sigma *= 0.5
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
                      wall_s=time.perf_counter() - t0)
     record["step"] = k
+    record["jiggle_sigma"] = float(sigma)
+    record["jiggle_attempts"] = attempt + 1
     if p.control in PARAMETER_CONTROLS:
         record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:
