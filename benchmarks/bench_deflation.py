@@ -82,9 +82,10 @@ class _CountingSolver:
         return self.inner.inertia()
 
 
-def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool) -> dict:
+def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool,
+            jiggle: float | None = None) -> dict:
     params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
-    protocol = Protocol.paper(dv=dv, until=until, seed=seed)
+    protocol = Protocol.paper(dv=dv, until=until, seed=seed, jiggle=jiggle)
     recorder = _Recorder()
     protocol_mod._minimize = recorder
     try:
@@ -140,6 +141,9 @@ def main(argv=None) -> None:
                         help="last target dV/V (default 0.95: run to self-contact)")
     parser.add_argument("--dv", type=float, default=0.019, help="volume step / V0 (default 0.019)")
     parser.add_argument("--seed", type=int, default=0, help="mesh and jiggle seed (default 0)")
+    parser.add_argument("--jiggle", type=float,
+                        help="jiggle as a fraction of the mean edge length instead of the "
+                             "protocol's default (Surface Evolver's temperature 0.05)")
     parser.add_argument("--steps", action="store_true", help="print one line per step")
     parser.add_argument("--large", action="store_true", help="add the ~40k-vertex run")
     parser.add_argument("--large-vertices", type=int, default=40000)
@@ -162,7 +166,7 @@ def main(argv=None) -> None:
             print(f"random_sphere({n}, seed={args.seed}) built in {time.perf_counter() - t:.1f} s "
                   "(not counted)", flush=True)
         r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=args.seed,
-                    per_step=args.steps)
+                    per_step=args.steps, jiggle=args.jiggle)
         rows.append(r)
         print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s wall, "
               f"{r['cpu']:.1f} s CPU (init {r['init']:.1f} s)", flush=True)

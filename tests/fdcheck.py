@@ -38,3 +38,22 @@ def fd_hessian_error(gradient, hessian, X):
             fd[:, i] = (gradient(Xp.reshape(X.shape)) - gradient(Xm.reshape(X.shape))).ravel() / (2 * h)
         errs.append(np.linalg.norm(fd - H) / np.linalg.norm(H))
     return min(errs)
+
+
+def random_rotation(rng) -> np.ndarray:
+    """A uniformly random rotation (QR of a Gaussian matrix, signs fixed, det +1)."""
+    Q, R = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q = Q * np.sign(np.diag(R))
+    return Q if np.linalg.det(Q) > 0 else -Q
+
+
+def triangulated_cube(s: float):
+    """Vertices (8, 3) and outward-oriented faces (12, 3) of a cube of side ``s`` with one
+    corner at the origin, each square split along a diagonal (Steiner-formula oracles)."""
+    X = s * np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    F = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    n = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
+    flip = (n * (X[F].mean(axis=1) - s / 2)).sum(axis=1) < 0
+    F[flip] = F[flip][:, ::-1]
+    return X, F

@@ -189,3 +189,23 @@ def test_gamma_271_is_a_sphere_then_a_capsule(run_271):  # about 15 s
     assert shapes[:drop] == ["sphere"] * drop
     assert shapes[drop:] == ["capsule"] * (len(shapes) - drop)
     assert (table["W"] == 0).all() and (table["n_dimples"] == (table.index >= drop)).all()
+
+
+@pytest.mark.slow
+def test_gamma_271_stays_a_capsule_until_self_contact(tmp_path):  # about 5 min
+    # Paper §4.3 and Fig. 7a: at gamma = 271 (d/R = 0.172) the shell buckles into one
+    # axisymmetric dent and stays a capsule until the surface touches itself, on the paper's
+    # randomized 3594-vertex mesh with its protocol.
+    from shellbuckle.analysis import analyze_run, events
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+
+    run = deflate(None, ShellParameters.from_gamma(271.0, nu=1 / 3), seed=0, out=tmp_path / "r")
+    assert run.store.meta.get("message", "").startswith("self-intersection")
+    table = analyze_run(run)
+    assert table["dV_over_V"].iloc[-1] > 0.6  # self-contact deep in the deflation
+    shapes = table["shape"].tolist()
+    first = shapes.index("capsule")
+    assert set(shapes[:first]) == {"sphere"}
+    assert set(shapes[first:-1]) == {"capsule"}  # the last step touches itself
+    assert not {"axisymmetry_loss", "wrinkles"} & {e.name for e in events(run)}

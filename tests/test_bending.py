@@ -4,6 +4,7 @@ import scipy.sparse as sp
 
 from shellbuckle.energies.bending import Bending
 from shellbuckle.mesh import Mesh, icosphere
+from fdcheck import triangulated_cube
 
 STEPS = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
 
@@ -157,12 +158,7 @@ def test_cube_integrated_mean_curvature_is_steiner():
     # sum_i M_i = 1/2 sum_e l_e theta_e = 3 pi s for a cube of side s (Steiner formula);
     # the triangulation's face diagonals are flat and add nothing
     s = 0.8
-    X = s * np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
-    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-    F = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
-    n = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-    flip = (n * (X[F].mean(axis=1) - s / 2)).sum(axis=1) < 0
-    F[flip] = F[flip][:, ::-1]
+    X, F = triangulated_cube(s)
     b = Bending.from_mesh(Mesh.from_arrays(X, F), c0=0.0)
     A = b.vertex_areas(X)
     assert A.sum() == pytest.approx(6 * s * s, rel=1e-14)

@@ -3,6 +3,7 @@ import pytest
 
 from shellbuckle.energies import hinge as hg
 from shellbuckle.mesh import Topology
+from fdcheck import triangulated_cube
 
 STEPS = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
 
@@ -83,12 +84,7 @@ def test_cube_total_mean_curvature_is_steiner():
     # Steiner: V(K + rB) = V + S r + M r^2 + 4 pi r^3 / 3 with M = 1/2 sum_e l_e theta_e = 3 pi s
     # for a cube of side s; the face diagonals of a triangulated cube are flat (theta = 0).
     s = 1.7
-    X = s * np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], float)
-    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
-    F = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
-    n = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])
-    flip = (n * (X[F].mean(axis=1) - s / 2)).sum(axis=1) < 0
-    F[flip] = F[flip][:, ::-1]
+    X, F = triangulated_cube(s)
     t = Topology.from_faces(F)
     phi = hg.length_angle_hessian(X, t.hinges)[0]
     assert 0.5 * phi.sum() == pytest.approx(3 * np.pi * s, rel=1e-14)

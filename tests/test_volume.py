@@ -9,12 +9,7 @@ from shellbuckle.mesh import icosphere
 from fdcheck import fd_gradient_error as _fd_gradient_error
 from fdcheck import fd_hessian_error as _fd_hessian_error
 from fdcheck import perturbed as _perturbed
-
-
-def _random_rotation(rng):
-    Q, R = np.linalg.qr(rng.standard_normal((3, 3)))
-    Q = Q * np.sign(np.diag(R))
-    return Q if np.linalg.det(Q) > 0 else -Q
+from fdcheck import random_rotation as _random_rotation
 
 
 @pytest.fixture
