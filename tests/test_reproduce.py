@@ -109,7 +109,7 @@ def test_the_report_thresholds_are_the_runs_own(study):
     _, out = study
     rows = _report_rows((out / "report.md").read_text())
     runs = [r for r in _runs(out / "sweep") + _runs(out / "special")
-            if r.protocol.c0_cycle and bool(r.table["converged"].all())]
+            if r.protocol.c0_cycle and r.table["converged"].astype(bool).mean() >= 0.5]
     by_gamma: dict = {}
     for r in runs:
         by_gamma.setdefault(r.params.gamma, []).append(thresholds(r)["primary_buckling"])
