@@ -1,6 +1,5 @@
 """The documented examples run and their own checks (assertions inside them) hold."""
 
-import os
 import runpy
 from pathlib import Path
 

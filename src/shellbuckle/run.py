@@ -14,7 +14,6 @@ schedule (re-inflation, arbitrary paths) while keeping the original stress-free 
 from __future__ import annotations
 
 import logging
-import time
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -23,7 +22,7 @@ import numpy as np
 from .mesh.mesh import Mesh
 from .params import ShellParameters
 from .protocol import deflate as protocol_mod
-from .protocol.deflate import PARAMETER_CONTROLS, Protocol, State
+from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .store.run import RunStore
 
