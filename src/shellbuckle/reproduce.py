@@ -268,24 +268,33 @@ def _fig11_path(study: Study, out: Path, where: dict, progress: bool) -> dict | 
 
 
 def _reinflation(study: Study, out: Path, main_spec, progress: bool) -> dict | None:
-    """The paper's re-inflation (§4.4, Fig. 8): from the deflation at gamma = 2916 (or the
-    study's gamma nearest to it) at the stored step nearest dV/V = 0.474, volume steps of
-    -dv back to 0.209; the shape and W at both ends."""
+    """The paper's re-inflation (§4.4, Fig. 8): from a wrinkled (else polygonal) deflation at
+    the stored step nearest dV/V = 0.474 — at gamma = 2916 if that run is wrinkled there, else
+    at the study's gamma nearest to 2916 whose run is (the paper re-inflates a wrinkled
+    state), else at the gamma nearest 2916 — volume steps of -dv back to 0.209; the shape and
+    W at both ends."""
     from .analysis import classify
     from .run import Run, continue_from
 
-    gammas = sorted({p["gamma"] for p in main_spec.points()})
-    if not gammas:
+    gammas = sorted({p["gamma"] for p in main_spec.points()},
+                    key=lambda g: abs(math.log(g / REINFLATION_GAMMA)))
+    candidates = []
+    for gamma in gammas:
+        name = _point_in(main_spec, gamma=gamma, seed=0, n_vertices=study.vertices[0])
+        try:
+            run = Run.open(out / "sweep" / name)
+        except ValueError as exc:
+            log.warning("re-inflation: run %s not available (%s)", name, exc)
+            continue
+        table = run.table
+        k = int(table["step"].iloc[(table["dV_over_V"] - REINFLATION_FROM).abs().argmin()])
+        shape = classify(run.positions(k), run.faces).shape
+        rank = {"wrinkled": 0, "polygonal": 1}.get(shape, 2)
+        candidates.append((rank, len(candidates), gamma, name, run, k))
+    if not candidates:
         return None
-    gamma = min(gammas, key=lambda g: abs(math.log(g / REINFLATION_GAMMA)))
-    name = _point_in(main_spec, gamma=gamma, seed=0, n_vertices=study.vertices[0])
-    try:
-        parent = Run.open(out / "sweep" / name)
-    except ValueError as exc:
-        log.warning("re-inflation skipped: %s", exc)
-        return None
+    _, _, gamma, name, parent, k = min(candidates)
     table = parent.table
-    k = int(table["step"].iloc[(table["dV_over_V"] - REINFLATION_FROM).abs().argmin()])
     start = float(table["dV_over_V"].iloc[k])
     if start <= REINFLATION_TO + study.dv:
         log.warning("re-inflation skipped: the gamma = %g run stopped at dV/V = %.3f", gamma,
