@@ -209,3 +209,25 @@ def test_gamma_271_stays_a_capsule_until_self_contact(tmp_path):  # about 5 min
     assert set(shapes[:first]) == {"sphere"}
     assert set(shapes[first:-1]) == {"capsule"}  # the last step touches itself
     assert not {"axisymmetry_loss", "wrinkles"} & {e.name for e in events(run)}
+
+
+@pytest.mark.slow
+def test_gamma_15163_capsule_becomes_polygonal_then_wrinkled(tmp_path):  # about 10 min
+    # Paper §4.3-4.4: above the secondary threshold the capsule's rim loses axisymmetry
+    # (polygonal dent) and then wrinkles, W between 4 and 8 at mid deflation. The paper puts
+    # this from gamma ~ 933; on the paper's mesh with its protocol our shells do it from
+    # gamma ~ 7465 (docs/reproduction.md), so the sequence is asserted at gamma = 15163.
+    from shellbuckle.analysis import analyze_run, events
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+
+    run = deflate(None, ShellParameters.from_gamma(15163.0, nu=1 / 3), seed=0,
+                  until=0.5, out=tmp_path / "r")
+    table = analyze_run(run)
+    shapes = table["shape"].tolist()
+    order = [shapes.index(s) for s in ("sphere", "capsule", "polygonal", "wrinkled")]
+    assert order == sorted(order)
+    mid = table[(table["dV_over_V"] > 0.35) & (table["shape"] == "wrinkled")]
+    assert len(mid) >= 3 and mid["W"].between(3, 8).all()
+    names = [e.name for e in events(run)]
+    assert names.index("primary_buckling") < names.index("axisymmetry_loss") < names.index("wrinkles")
