@@ -81,10 +81,12 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     ctx, state = deflate.init(mesh, params, protocol)
     minimize, calls = deflate._minimize, []
 
-    def first_fails(*args, **kwargs):
+    def first_fails(*args, **kwargs):  # the first minimization ends unconverged and tangled
         result = minimize(*args, **kwargs)
         calls.append(result.success)
-        return dataclasses.replace(result, success=False) if len(calls) == 1 else result
+        if len(calls) == 1:
+            return dataclasses.replace(result, success=False, fun=1e6)
+        return result
 
     monkeypatch.setattr(deflate, "_minimize", first_fails)
     state, record = deflate.step(ctx, state)
@@ -103,3 +105,20 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V)
     r = minimize(ctx2, ctx2.energy, r.x, V)
     assert np.allclose(r.x, state.X, atol=1e-12)
+
+
+def test_a_step_that_merely_crawls_is_not_jiggled_again(monkeypatch):
+    # unconverged but at a sensible energy (a soft mode, not a tangle): no retry
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+
+    mesh = icosphere(3)
+    ctx, state = deflate.init(mesh, ShellParameters.from_gamma(271.0, nu=1.0 / 3.0),
+                              Protocol(schedule=(0.019,), c0_cycle=False, seed=4))
+    minimize = deflate._minimize
+    monkeypatch.setattr(deflate, "_minimize", lambda *a, **k: dataclasses.replace(
+        minimize(*a, **k), success=False))
+    _, record = deflate.step(ctx, state)
+    assert record["jiggle_attempts"] == 1 and not record["converged"]

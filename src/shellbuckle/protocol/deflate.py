@@ -54,9 +54,10 @@ PARAMETER_CONTROLS = ("gamma", "c0")
 """Controls whose schedule is a parameter path at the fixed volume ``fixed_dV_over_V``."""
 
 JIGGLE_RETRIES = 3
-"""A Newton minimization that does not converge after the jiggle (a large jiggle can fold a
-triangle over one of its edges, which keeps the triangle's metric and so costs no stretching
-energy, and the minimizer may stay tangled) is started again from the step's start with a jiggle of half the
+"""A Newton minimization that does not converge after the jiggle and stays far above the
+energy of the shrunk sphere (a large jiggle can fold a triangle over one of its edges, which
+keeps the triangle's metric and so costs no stretching energy, and the minimizer may stay
+tangled; see ``_tangled``) is started again from the step's start with a jiggle of half the
 amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; the
 table records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
 
@@ -271,6 +272,17 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None):
                     max_iter=p.max_iter, **options)
 
 
+def _tangled(ctx: Context, E: float, V_target) -> bool:
+    """Whether an unconverged minimization is stuck far above any sensible state: above 1.5
+    times the energy of the uniformly shrunk reference sphere at the same volume (an
+    admissible state) plus kappa. A minimization that merely crawls along a soft mode is not
+    retried. Under pressure control (no volume target) every failure counts as tangled."""
+    if V_target is None:
+        return True
+    shrunk = ctx.mesh.X * (V_target / ctx.V0) ** (1.0 / 3.0)
+    return E > 1.5 * ctx.energy.value(shrunk) + ctx.params.kappa
+
+
 def step(ctx: Context, state: State):
     """One step (a volume, pressure, gamma or c0 increment): jiggle, minimize, c0 cycle,
     measure. Returns ``(state, record)``; a parameter path's record also has ``gamma``."""
@@ -301,10 +313,10 @@ def step(ctx: Context, state: State):
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure)
             result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure)
             iterations += flat.nit + result.nit
-        if result.success or attempt == retries:
+        if result.success or attempt == retries or not _tangled(ctx, result.fun, V_target):
             break
-        log.warning("step %d: no convergence after a jiggle of std %.3g (%s); jiggling again "
-                    "with half of it", k, sigma, result.message)
+        log.warning("step %d: no convergence after a jiggle of std %.3g (%s; E = %.6g); "
+                    "jiggling again with half of it", k, sigma, result.message, result.fun)
         sigma *= 0.5
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
