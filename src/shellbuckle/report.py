@@ -500,8 +500,14 @@ def _soleil(ctx, key, value, name):
         return info(key, value, f"{len(plain)} deflation and {len(path)} branched run(s)", "")
     if plain.empty or path.empty:
         return unreachable(key, value, why)
+    # a path in gamma first (the paper's route), compared at its end, where gamma is reached
+    path = pd.concat([path[path["control"] == "gamma"], path[path["control"] != "gamma"]])
     a = ctx.step_near(plain.iloc[0], entry["DeltaV_over_V"])
     b = ctx.step_near(path.iloc[0], entry["DeltaV_over_V"])
+    table = ctx.table(path.iloc[0])
+    if path["control"].iloc[0] == "gamma" and table is not None and not table.empty:
+        b = table.iloc[-1] if abs(table["dV_over_V"].iloc[-1] - entry["DeltaV_over_V"]) <= \
+            max(float(plain["dv"].iloc[0]), 1e-9) else None
     if a is None or b is None:
         return unreachable(key, value, why)
     return compare(key, value, float(a["E_total"]) / float(b["E_total"]))

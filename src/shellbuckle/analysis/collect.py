@@ -174,6 +174,8 @@ def collect_run(folder, *, store_analysis: bool = False) -> tuple[dict, pd.DataF
                analysis=source, W_steps=0)
     if table.empty:
         return row, table
+    if protocol.get("control") == "gamma" and "gamma" in table:  # a path: the gamma reached
+        row["gamma"] = float(table["gamma"].iloc[-1])
     if "converged" in table:  # steps whose minimizations converged (a quench: none)
         row["converged_fraction"] = float(table["converged"].fillna(True).astype(bool).mean())
     row.update(n_steps=int(table["step"].iloc[-1]),
