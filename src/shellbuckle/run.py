@@ -127,7 +127,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
-    ``seed``); ``params`` to gamma = 2333, nu = 1/3. The schedule is ``dv, 2 dv, ...`` up to
+    ``seed``); ``params`` to gamma = 15163, nu = 1/3 (it wrinkles). The schedule is ``dv, 2 dv, ...`` up to
     ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
@@ -142,7 +142,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     """
     from .mesh.random_sphere import random_sphere
 
-    params = params or ShellParameters.from_gamma(2333.0, nu=1.0 / 3.0)
+    params = params or ShellParameters.from_gamma(15163.0, nu=1.0 / 3.0)
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
@@ -425,6 +425,6 @@ def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None) -> ShellPa
     R = (3.0 * V / (4.0 * np.pi)) ** (1.0 / 3.0)
     kappa = from_file.get("kappa", 1.0)
     if gamma is None:
-        gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else 2333.0
+        gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else 15163.0
     nu = nu if nu is not None else from_file.get("nu", 1.0 / 3.0)
     return ShellParameters.from_gamma(gamma, nu=nu, kappa=kappa, R=R)
