@@ -31,21 +31,22 @@ def test_evolver_sigma_is_mesh_independent_and_proportional_to_size(R):
 def test_displacements_have_the_requested_std_and_zero_mean():
     m = random_sphere(3000, seed=0)
     rng = step_rng(7, 3)
-    d = jiggle(m.X, m.topology.edges, 0.0, rng, sigma=0.02) - m.X
+    d = jiggle(m.X, 0.02, rng) - m.X
     n = d.size
     assert d.std() == pytest.approx(0.02, rel=4 / np.sqrt(n))  # ~4 standard errors
     assert abs(d.mean()) < 4 * 0.02 / np.sqrt(n)
-    e = jiggle(m.X, m.topology.edges, 0.1, step_rng(7, 3)) - m.X
+    by_edge = Protocol(schedule=(0.1,), jiggle=0.1).jiggle_sigma(m.X, m.X, m.topology.edges)
+    e = jiggle(m.X, by_edge, step_rng(7, 3)) - m.X
     assert e.std() == pytest.approx(0.1 * mean_edge_length(m.X, m.topology.edges), rel=4 / np.sqrt(n))
 
 
 def test_same_seed_and_step_give_the_same_jiggle_and_zero_draws_nothing():
     m = icosphere(2)
-    a = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5), sigma=0.01)
-    b = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5), sigma=0.01)
-    c = jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 6), sigma=0.01)
+    a = jiggle(m.X, 0.01, step_rng(1, 5))
+    b = jiggle(m.X, 0.01, step_rng(1, 5))
+    c = jiggle(m.X, 0.01, step_rng(1, 6))
     assert np.array_equal(a, b) and not np.array_equal(a, c)
-    assert np.array_equal(jiggle(m.X, m.topology.edges, 0.0, step_rng(1, 5)), m.X)
+    assert np.array_equal(jiggle(m.X, 0.0, step_rng(1, 5)), m.X)
 
 
 def test_protocol_jiggle_options():
@@ -99,7 +100,7 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     again = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
     ctx2, s2 = deflate.init(mesh, params, again)
     rng = np.random.default_rng([4, 1, 1])
-    X = jiggle(s2.X, mesh.topology.edges, 0.0, rng, sigma=sigma0 / 2)
+    X = jiggle(s2.X, sigma0 / 2, rng)
     V = ctx2.V0 * (1 - 0.019)
     r = minimize(ctx2, ctx2.energy, X, V)
     r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V)

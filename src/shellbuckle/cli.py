@@ -189,13 +189,9 @@ def _add_material_options(parser) -> None:
     group.add_argument("--R", type=float, help="shell radius (with --E --sigma --d)")
 
 
-#: gamma of the main job: in the wrinkled regime of our runs on the paper's mesh (capsule,
-#: polygonal from dV/V = 0.13, wrinkled with W = 4-5 from 0.27; docs/reproduction.md)
-MAIN_JOB_GAMMA = 15163.0
-
-
-def _params_from_args(args, default_gamma=MAIN_JOB_GAMMA, fallback=None):
+def _params_from_args(args, fallback=None):
     from .params import ShellParameters
+    from .run import MAIN_JOB_GAMMA
 
     material = [args.E, args.sigma, args.d, args.R]
     if any(v is not None for v in material):
@@ -206,7 +202,7 @@ def _params_from_args(args, default_gamma=MAIN_JOB_GAMMA, fallback=None):
         return ShellParameters.from_material(args.E, args.sigma, args.d, args.R)
     if fallback is not None and args.gamma is None and args.nu is None:
         return fallback
-    gamma = args.gamma if args.gamma is not None else (fallback.gamma if fallback else default_gamma)
+    gamma = args.gamma if args.gamma is not None else (fallback.gamma if fallback else MAIN_JOB_GAMMA)
     nu = args.nu if args.nu is not None else (fallback.nu if fallback else 1.0 / 3.0)
     return ShellParameters.from_gamma(gamma, nu=nu)
 

@@ -253,6 +253,13 @@ def _caption(ctx, key, value, entry):
     return info(key, value, "", "not compared")
 
 
+def _compare_fit(key, value, fit, attr: str, why: str):
+    """The row comparing the paper's ``value`` with ``fit.<attr>`` and its error."""
+    if fit is None:
+        return compare(key, value, None, None, what=why)
+    return compare(key, value, getattr(fit, attr), getattr(fit, f"{attr}_err"), what=why)
+
+
 def _fit_rows(ctx, key, value):
     name = key.split(".")[-1]
     group = key.split(".")[1]
@@ -262,21 +269,17 @@ def _fit_rows(ctx, key, value):
         fit = ctx.fits.get("primary")
         why = "the primary fit needs runs that buckled at 2 or more gamma values"
         if name == "a":
-            return compare(key, value, None if fit is None else fit.prefactor,
-                           None if fit is None else fit.prefactor_err, what=why)
+            return _compare_fit(key, value, fit, "prefactor", why)
         if name == "b":
-            return compare(key, value, None if fit is None else fit.exponent,
-                           None if fit is None else fit.exponent_err, what=why)
+            return _compare_fit(key, value, fit, "exponent", why)
         if name == "theory_exponent":
-            row = compare(key, value, None if fit is None else fit.exponent,
-                          None if fit is None else fit.exponent_err, what=why)
+            row = _compare_fit(key, value, fit, "exponent", why)
             row.ours = "fitted exponent " + row.ours if fit is not None else row.ours
             return row
     fit = ctx.fits.get("secondary")
     why = "no run with a secondary threshold (loss of axisymmetry or wrinkles)"
     if name == "a":
-        return compare(key, value, None if fit is None else fit.prefactor,
-                       None if fit is None else fit.prefactor_err, what=why)
+        return _compare_fit(key, value, fit, "prefactor", why)
     if name == "gamma_c":
         gc = None if fit is None else critical_gamma(fit)
         return compare(key, value, None if gc is None else gc.value,

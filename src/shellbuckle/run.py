@@ -112,6 +112,12 @@ class Run:
         return f"Run({str(self.path)!r}, status={self.status!r}, steps={len(self.steps)})"
 
 
+MAIN_JOB_GAMMA = 15163.0
+"""gamma of ``deflate()`` and ``shellbuckle deflate`` without parameters: in the wrinkled regime
+of our runs on the paper's mesh (a capsule, polygonal from dV/V = 0.13, wrinkled with W = 4-5
+from 0.27; docs/reproduction.md)."""
+
+
 def default_out(params: ShellParameters, seed: int) -> Path:
     stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
     return Path("runs") / f"gamma{params.gamma:g}_nu{params.nu:.3g}_seed{seed}_{stamp}"
@@ -121,7 +127,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
-            max_iter: int = 200, stop_at_contact: bool = True, c0: float | None = None, out=None,
+            max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True, c0: float | None = None, out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
@@ -142,7 +148,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     """
     from .mesh.random_sphere import random_sphere
 
-    params = params or ShellParameters.from_gamma(15163.0, nu=1.0 / 3.0)
+    params = params or ShellParameters.from_gamma(MAIN_JOB_GAMMA, nu=1.0 / 3.0)
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
@@ -425,6 +431,6 @@ def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None) -> ShellPa
     R = (3.0 * V / (4.0 * np.pi)) ** (1.0 / 3.0)
     kappa = from_file.get("kappa", 1.0)
     if gamma is None:
-        gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else 15163.0
+        gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else MAIN_JOB_GAMMA
     nu = nu if nu is not None else from_file.get("nu", 1.0 / 3.0)
     return ShellParameters.from_gamma(gamma, nu=nu, kappa=kappa, R=R)

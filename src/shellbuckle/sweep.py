@@ -43,7 +43,7 @@ import traceback as _traceback
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from .protocol.deflate import DEFAULT_TEMPERATURE, METHODS
+from .protocol.deflate import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
                               write_sweep_file)
@@ -144,7 +144,7 @@ class SweepSpec:
     bending: tuple = ("juelicher",)
     method: tuple = ("newton",)
     tol: float = 1e-9
-    max_iter: int = 200
+    max_iter: int = DEFAULT_MAX_ITER
     stop_at_contact: bool = True
 
     def __post_init__(self):
@@ -298,7 +298,7 @@ def run_name(point: dict) -> str:
         name += f"_{point['bending']}"
     if point["method"] != "newton":
         name += f"_{point['method']}"
-    if point.get("max_iter", 200) != 200:
+    if point.get("max_iter", DEFAULT_MAX_ITER) != DEFAULT_MAX_ITER:
         name += f"_it{point['max_iter']}"
     return name
 
@@ -355,7 +355,7 @@ def _deflate(point: dict, folder: Path):
                            c0_cycle=point["c0_cycle"], jiggle=point["jiggle"],
                            temperature=point.get("temperature"),
                            seed=point["seed"], bending=point["bending"], method=point["method"],
-                           tol=point["tol"], max_iter=point.get("max_iter", 200),
+                           tol=point["tol"], max_iter=point.get("max_iter", DEFAULT_MAX_ITER),
                            stop_at_contact=point["stop_at_contact"],
                            out=folder, progress=False)
         except ValueError:

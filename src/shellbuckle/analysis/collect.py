@@ -203,16 +203,22 @@ _INTS = ("seed", "n_vertices", "n_steps", "W_steps")
 _BOOLS = ("c0_cycle", "primary_confirmed")
 
 
-def _typed(frame: pd.DataFrame) -> pd.DataFrame:
-    for c in _FLOATS:
+def typed_columns(frame: pd.DataFrame, *, ints=(), floats=(), bools=()) -> pd.DataFrame:
+    """Cast columns in place: ``floats`` to float64 (NaN where missing), ``ints`` and ``bools``
+    to pandas' nullable ``Int64`` and ``boolean`` (``<NA>`` where None or NaN)."""
+    for c in floats:
         frame[c] = pd.to_numeric(frame[c], errors="coerce").astype(np.float64)
-    for c in _INTS:
+    for c in ints:
         frame[c] = pd.array([None if v is None or v != v else int(v) for v in frame[c]],
                             dtype="Int64")
-    for c in _BOOLS:
+    for c in bools:
         frame[c] = pd.array([None if v is None or v != v else bool(v) for v in frame[c]],
                             dtype="boolean")
     return frame
+
+
+def _typed(frame: pd.DataFrame) -> pd.DataFrame:
+    return typed_columns(frame, ints=_INTS, floats=_FLOATS, bools=_BOOLS)
 
 
 def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = None,

@@ -61,6 +61,9 @@ tangled; see ``_tangled``) is started again from the step's start with a jiggle 
 amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; the
 table records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
 
+DEFAULT_MAX_ITER = 200
+"""Iterations of one minimization at most (Newton converges well within it)."""
+
 DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
 """Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate
 (the paper's runs were made with Surface Evolver's jiggle; see :mod:`.jiggle`)."""
@@ -94,7 +97,7 @@ class Protocol:
     method: str = "newton"
     stop_at_contact: bool = True
     tol: float = 1e-9
-    max_iter: int = 200
+    max_iter: int = DEFAULT_MAX_ITER
     control: str = "volume"
     fixed_dV_over_V: float | None = None
 
@@ -305,7 +308,7 @@ def step(ctx: Context, state: State):
     retries = JIGGLE_RETRIES if p.method in ("newton", "alternate") and sigma > 0 else 0
     for attempt in range(retries + 1):
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
-        X = jiggle(state.X, ctx.mesh.topology.edges, 0.0, rng, sigma=sigma)
+        X = jiggle(state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure)
         iterations += result.nit
         E_before = result.fun

@@ -15,7 +15,7 @@ coordinate. Two ways to set ``sigma``:
   whatever the mesh: 0.44 mean edge lengths on the paper's 3594-vertex mesh. Measured on
   ``evolver`` 2.70 itself (``j`` with temperature 0.05 on 642- and 2562-vertex spheres of
   radius 1 and 2): sigma = 0.0279 R and 0.0280 R.
-- ``amplitude`` a: ``sigma = a * mean edge length`` of the current mesh.
+- a ``jiggle`` amplitude a: ``sigma = a * mean edge length`` of the current mesh.
 
 The random stream of step ``k`` of a run with seed ``s`` is ``numpy.random.default_rng([s, k])``,
 so a resumed run draws exactly the numbers an uninterrupted one would.
@@ -51,14 +51,10 @@ def evolver_sigma(temperature: float, X_reference: np.ndarray) -> float:
     return EVOLVER_JIGGLE_SCALE * float(temperature) * overall_size(X_reference)
 
 
-def jiggle(X: np.ndarray, edges: np.ndarray, amplitude: float, rng: np.random.Generator, *,
-           sigma: float | None = None) -> np.ndarray:
-    """Return ``X`` plus Gaussian displacements.
-
-    The std per coordinate is ``sigma`` when given (e.g. :func:`evolver_sigma`), otherwise
-    ``amplitude * mean edge length``. No random numbers are drawn for a zero displacement.
-    """
-    scale = amplitude * mean_edge_length(X, edges) if sigma is None else float(sigma)
-    if scale == 0:
+def jiggle(X: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Return ``X`` plus Gaussian displacements of std ``sigma`` per coordinate
+    (:func:`evolver_sigma`, or a fraction of :func:`mean_edge_length`). No random numbers are
+    drawn for ``sigma = 0``."""
+    if sigma == 0:
         return X.copy()
-    return X + scale * rng.standard_normal(X.shape)
+    return X + float(sigma) * rng.standard_normal(X.shape)

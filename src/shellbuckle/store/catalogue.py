@@ -388,14 +388,9 @@ _BOOL_COLUMNS = ("c0_cycle", "primary_confirmed")
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:
-    for c in _INT_COLUMNS:
-        frame[c] = pd.array([None if v is None or v != v else int(v) for v in frame[c]],
-                            dtype="Int64")
-    for c in _FLOAT_COLUMNS:
-        frame[c] = pd.to_numeric(frame[c], errors="coerce").astype(np.float64)
-    for c in _BOOL_COLUMNS:
-        frame[c] = pd.array([None if v is None or v != v else bool(v) for v in frame[c]],
-                            dtype="boolean")
+    from ..analysis.collect import typed_columns
+
+    typed_columns(frame, ints=_INT_COLUMNS, floats=_FLOAT_COLUMNS, bools=_BOOL_COLUMNS)
     for c in COLUMNS:
         if c not in _INT_COLUMNS + _FLOAT_COLUMNS + _BOOL_COLUMNS:
             frame[c] = frame[c].astype(object).where(frame[c].notna(), None)
