@@ -68,6 +68,9 @@ def test_protocol_jiggle_options():
     old.pop("jiggle")
     assert Protocol.from_dict(old).jiggle == 0.01
     assert Protocol.from_dict(default.to_dict()) == default
+    # ... and, stored before the preconditioned relaxation, resumes without it
+    old.pop("prerelax")
+    assert default.prerelax and not Protocol.from_dict(old).prerelax
 
 
 def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(monkeypatch):
@@ -102,9 +105,9 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     rng = np.random.default_rng([4, 1, 1])
     X = jiggle(s2.X, sigma0 / 2, rng)
     V = ctx2.V0 * (1 - 0.019)
-    r = minimize(ctx2, ctx2.energy, X, V)
-    r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V)
-    r = minimize(ctx2, ctx2.energy, r.x, V)
+    r = minimize(ctx2, ctx2.energy, X, V, relaxed=s2.X)
+    r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V, relaxed=r.x)
+    r = minimize(ctx2, ctx2.energy, r.x, V, relaxed=r.x)
     assert np.allclose(r.x, state.X, atol=1e-12)
 
 

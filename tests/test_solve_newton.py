@@ -215,3 +215,37 @@ def test_newton_is_reproducible():
     a = newton(energy, volume, X0, 0.9 * V0)
     b = newton(energy, volume, X0, 0.9 * V0)
     assert np.array_equal(a.x, b.x) and a.fun == b.fun and a.nit == b.nit
+
+
+@pytest.mark.parametrize("sigma", [0.01, 0.3])
+def test_preconditioned_relaxation_reaches_the_newton_minimum(sigma):
+    # a jiggle of sigma mean edge lengths from the shrunk sphere (0.3: hundreds of negative
+    # eigenvalues at the start); oracles: KKT conditions, dense inertia, plain Newton's minimum
+    mesh, energy, volume, V0 = shell(4, 1000)
+    shrunk = 0.95 ** (1 / 3) * mesh.X
+    edge = np.linalg.norm(mesh.X[mesh.faces[:, 0]] - mesh.X[mesh.faces[:, 1]], axis=1).mean()
+    X0 = shrunk + sigma * edge * np.random.default_rng(3).standard_normal(mesh.X.shape)
+    ref = newton(energy, volume, X0, 0.95 * V0, max_iter=300)
+    res = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                 max_iter=300)
+    assert ref.success and res.success and res.inertia == 0
+    assert_kkt(energy, volume, res, 0.95 * V0)
+    assert tangent_inertia_dense(energy, volume, res.x) == 0
+    assert res.fun == pytest.approx(ref.fun, rel=1e-10)
+    assert res.pressure == pytest.approx(ref.pressure, rel=1e-7)
+    steps = [h["step"] for h in res.history]
+    assert steps[0] == "relax" and res.nit == len(steps)
+    relax = [h["energy"] for h in res.history if h["step"] == "relax"]
+    assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(relax, relax[1:]))
+
+
+def test_kkt_pattern_does_not_depend_on_values():
+    # on the exact reference icosphere some stretching and bending entries cancel; the
+    # solver's pattern (and so its ordering and round-off) must be the same as elsewhere
+    mesh, energy, volume, V0 = shell(3, 271)
+    X1 = mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    assert energy.hessian(mesh.X).nnz < energy.hessian(X1).nnz  # the cancellation exists
+    for a, b in zip(energy.hessian_terms(mesh.X), energy.hessian_terms(X1)):
+        assert np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+    assert np.allclose(sum(energy.hessian_terms(X1)).toarray(), energy.hessian(X1).toarray(),
+                       rtol=0, atol=1e-12)

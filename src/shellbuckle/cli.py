@@ -252,6 +252,9 @@ def _register_deflate(sub) -> None:
                        help="iterations of each minimization at most (default 200; a small "
                             "budget with --method cg quenches as a fixed Surface Evolver script)")
     proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
+    proto.add_argument("--no-prerelax", action="store_true",
+                       help="start each Newton minimization at once, without the relaxation "
+                            "preconditioned by the step's starting state (slower; for comparisons)")
     branch = parser.add_argument_group("continue from a stored step (re-inflation, other paths)")
     branch.add_argument("--from", dest="from_run", metavar="DIR",
                         help="start from a step of the run in DIR (its reference sphere, "
@@ -294,7 +297,8 @@ def _cmd_deflate(args) -> int:
     # refuse bad protocol options before any mesh is built
     options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                    temperature=args.temperature, seed=args.seed, bending=args.bending,
-                   method=args.method, max_iter=args.max_iter, c0=args.c0)
+                   method=args.method, max_iter=args.max_iter, c0=args.c0,
+                   prerelax=not args.no_prerelax)
     if pressures is not None:
         Protocol(schedule=tuple(pressures), control="pressure", **options)
     elif schedule is None:
@@ -320,7 +324,7 @@ def _cmd_deflate(args) -> int:
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                   temperature=args.temperature, seed=args.seed,
                   bending=args.bending, method=args.method, max_iter=args.max_iter, c0=c0,
-                  out=args.out,
+                  prerelax=not args.no_prerelax, out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
                   pressures=pressures)
     return _report_run(run, plot=not args.no_plot)

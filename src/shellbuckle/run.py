@@ -127,7 +127,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
-            max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True, c0: float | None = None, out=None,
+            max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
+            c0: float | None = None, prerelax: bool = True, out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
@@ -145,6 +146,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``max_iter`` bounds the iterations of each minimization: with ``method="cg"`` or ``"gd"``
     a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
     paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
+    ``prerelax`` starts every Newton minimization with the preconditioned relaxation (see
+    :class:`~shellbuckle.protocol.deflate.Protocol`); off, Newton starts at once (slower).
     """
     from .mesh.random_sphere import random_sphere
 
@@ -152,7 +155,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
-                   stop_at_contact=stop_at_contact)
+                   stop_at_contact=stop_at_contact, prerelax=prerelax)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")

@@ -84,3 +84,11 @@ class ShellEnergy:
 
     def hessian(self, X) -> sp.csr_matrix:
         return (self.stretching.hessian(X) + self.bending.hessian(X)).tocsr()
+
+    def hessian_terms(self, X) -> list:
+        """The Hessian as the list of its terms (stretching, bending), each a CSR matrix whose
+        pattern does not depend on ``X``. Their sum is :meth:`hessian`, whose pattern can lose
+        entries that happen to cancel exactly (e.g. on the reference sphere); Newton's method
+        scatters the terms separately so that its KKT pattern, and with it the linear solver's
+        ordering and round-off, never depend on the values."""
+        return [self.stretching.hessian(X), self.bending.hessian(X)]
