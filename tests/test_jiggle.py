@@ -126,3 +126,28 @@ def test_a_step_that_merely_crawls_is_not_jiggled_again(monkeypatch):
         minimize(*a, **k), success=False))
     _, record = deflate.step(ctx, state)
     assert record["jiggle_attempts"] == 1 and not record["converged"]
+
+
+def test_a_fold_is_told_from_a_contact_of_distant_faces():
+    # the classification behind re-jiggling a fold: intersecting faces within two rings are a
+    # fold of the mesh; a pair from opposite sides of the shell is a contact that ends the run
+    from shellbuckle.protocol.deflate import FOLD_RINGS, _near_vertices, local_pairs
+
+    mesh = icosphere(4)
+    faces = np.asarray(mesh.faces)
+    near = _near_vertices(mesh, FOLD_RINGS)
+    adjacency = {tuple(e) for e in np.sort(mesh.topology.edges, axis=1)}
+    centres = mesh.X[faces].mean(axis=1)
+    order = np.argsort(np.linalg.norm(centres - centres[0], axis=1))
+    close, far = order[6], order[-1]
+    assert local_pairs(near, faces, [(0, close)])
+    assert not local_pairs(near, faces, [(0, far)])
+    assert not local_pairs(near, faces, [(0, close), (0, far)])  # any distant pair: contact
+    assert not local_pairs(near, faces, np.empty((0, 2), int))
+    # two rings: every vertex reaches its neighbours' neighbours and no further
+    n2 = near[0].indices
+    ring1 = {b for a, b in adjacency if a == 0} | {a for a, b in adjacency if b == 0}
+    ring2 = set(ring1) | {0}
+    for v in ring1:
+        ring2 |= {b for a, b in adjacency if a == v} | {a for a, b in adjacency if b == v}
+    assert set(n2) == ring2

@@ -55,7 +55,8 @@ PARAMETER_CONTROLS = ("gamma", "c0")
 
 JIGGLE_RETRIES = 3
 """A Newton minimization that does not converge after the jiggle and stays far above the
-energy of the shrunk sphere (a large jiggle can fold a triangle over one of its edges, which
+energy of an admissible state (the shrunk reference sphere, or the step's start shrunk to the
+target volume; a large jiggle can fold a triangle over one of its edges, which
 keeps the triangle's metric and so costs no stretching energy, and the minimizer may stay
 tangled; see ``_tangled``) is started again from the step's start with a jiggle of half the
 amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; the
@@ -212,6 +213,8 @@ class Context:
     contact: ContactChecker
     solver: object
     c0: float = field(default=2.0)
+    near: object = field(default=None, repr=False)
+    """Boolean sparse matrix: vertices at most ``FOLD_RINGS`` edges apart (see ``_folded``)."""
 
 
 def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
@@ -229,7 +232,8 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0)
+                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0,
+                  near=_near_vertices(mesh, FOLD_RINGS))
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
 
@@ -287,15 +291,56 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None):
                     max_iter=p.max_iter, **options)
 
 
-def _tangled(ctx: Context, E: float, V_target) -> bool:
-    """Whether an unconverged minimization is stuck far above any sensible state: above 1.5
-    times the energy of the uniformly shrunk reference sphere at the same volume (an
-    admissible state) plus kappa. A minimization that merely crawls along a soft mode is not
-    retried. Under pressure control (no volume target) every failure counts as tangled."""
+def _tangled(ctx: Context, E: float, V_target, X_start: np.ndarray) -> bool:
+    """Whether an unconverged minimization is stuck far above any sensible state: above the
+    energy of an admissible state at the same volume, the lower of the uniformly shrunk
+    reference sphere and the step's start ``X_start`` (the previous conformation) uniformly
+    shrunk to the target volume, by more than 5 % of it plus kappa. A minimization that merely
+    crawls along a soft mode ends below these and is not retried. Under pressure control (no
+    volume target) every failure counts as tangled."""
     if V_target is None:
         return True
-    shrunk = ctx.mesh.X * (V_target / ctx.V0) ** (1.0 / 3.0)
-    return E > 1.5 * ctx.energy.value(shrunk) + ctx.params.kappa
+    admissible = min(ctx.energy.value(X * (V_target / ctx.volume.value(X)) ** (1.0 / 3.0))
+                     for X in (ctx.mesh.X, X_start))
+    return E > admissible + 0.05 * abs(admissible) + ctx.params.kappa
+
+
+FOLD_RINGS = 2
+"""Faces whose vertices are at most this many edges apart intersect in a fold, not a contact."""
+
+
+def _near_vertices(mesh: Mesh, rings: int):
+    """Boolean CSR matrix of vertex pairs at most ``rings`` edges apart."""
+    import scipy.sparse as sp
+
+    edges = np.asarray(mesh.topology.edges)
+    n = mesh.n_vertices
+    A = sp.coo_matrix((np.ones(2 * len(edges), dtype=bool),
+                       (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+                      shape=(n, n)).tocsr() + sp.identity(n, dtype=bool, format="csr")
+    near = A
+    for _ in range(rings - 1):
+        near = near @ A
+    return near.astype(bool).tocsr()
+
+
+def local_pairs(near, faces: np.ndarray, pairs) -> bool:
+    """Whether every face pair in ``pairs`` has a vertex of one within the ``near``
+    neighbourhood of a vertex of the other (and there is at least one pair)."""
+    pairs = np.asarray(pairs).reshape(-1, 2)
+    return len(pairs) > 0 and all(near[np.ix_(faces[f], faces[g])].nnz > 0 for f, g in pairs)
+
+
+def _folded(ctx: Context, X: np.ndarray) -> bool:
+    """Whether the surface intersects itself only where neighbouring faces meet: a fold left
+    by the jiggle (a triangle folded over an edge keeps its metric, so at large gamma the fold
+    can be a local minimum), not the contact of distant parts of the shell that ends a run.
+    Such a step is jiggled again with half the amplitude, like a tangled one."""
+    if ctx.near is None:
+        return False
+    contact = ctx.contact.check(X)
+    return bool(contact.intersects) and local_pairs(ctx.near, np.asarray(ctx.mesh.faces),
+                                                      contact.pairs)
 
 
 def step(ctx: Context, state: State):
@@ -329,10 +374,16 @@ def step(ctx: Context, state: State):
                              relaxed=result.x)
             result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure, relaxed=flat.x)
             iterations += flat.nit + result.nit
-        if result.success or attempt == retries or not _tangled(ctx, result.fun, V_target):
+        if attempt == retries:
             break
-        log.warning("step %d: no convergence after a jiggle of std %.3g (%s; E = %.6g); "
-                    "jiggling again with half of it", k, sigma, result.message, result.fun)
+        if not result.success and _tangled(ctx, result.fun, V_target, state.X):
+            why = f"no convergence ({result.message}; E = {result.fun:.6g})"
+        elif _folded(ctx, result.x):
+            why = "a fold of the mesh (only neighbouring faces intersect)"
+        else:
+            break
+        log.warning("step %d: %s after a jiggle of std %.3g; jiggling again with half of it",
+                    k, why, sigma)
         sigma *= 0.5
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
