@@ -131,23 +131,35 @@ def test_a_step_that_merely_crawls_is_not_jiggled_again(monkeypatch):
 def test_a_fold_is_told_from_a_contact_of_distant_faces():
     # the classification behind re-jiggling a fold: intersecting faces within two rings are a
     # fold of the mesh; a pair from opposite sides of the shell is a contact that ends the run
-    from shellbuckle.protocol.deflate import FOLD_RINGS, _near_vertices, local_pairs
+    from types import SimpleNamespace
+
+    from shellbuckle.mesh.contact import ContactChecker
+    from shellbuckle.protocol.deflate import only_local
 
     mesh = icosphere(4)
     faces = np.asarray(mesh.faces)
-    near = _near_vertices(mesh, FOLD_RINGS)
-    adjacency = {tuple(e) for e in np.sort(mesh.topology.edges, axis=1)}
+    checker = ContactChecker(mesh.topology)
+    assert checker.rings == 2
     centres = mesh.X[faces].mean(axis=1)
     order = np.argsort(np.linalg.norm(centres - centres[0], axis=1))
     close, far = order[6], order[-1]
-    assert local_pairs(near, faces, [(0, close)])
-    assert not local_pairs(near, faces, [(0, far)])
-    assert not local_pairs(near, faces, [(0, close), (0, far)])  # any distant pair: contact
-    assert not local_pairs(near, faces, np.empty((0, 2), int))
-    # two rings: every vertex reaches its neighbours' neighbours and no further
-    n2 = near[0].indices
-    ring1 = {b for a, b in adjacency if a == 0} | {a for a, b in adjacency if b == 0}
-    ring2 = set(ring1) | {0}
-    for v in ring1:
-        ring2 |= {b for a, b in adjacency if a == v} | {a for a, b in adjacency if b == v}
-    assert set(n2) == ring2
+
+    def contact(pairs):
+        pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        return SimpleNamespace(intersects=len(pairs) > 0, pairs=pairs)
+
+    assert only_local(checker, contact([(0, close)]))
+    assert not only_local(checker, contact([(0, far)]))
+    assert not only_local(checker, contact([(0, close), (0, far)]))  # any distant pair: contact
+    assert not only_local(checker, contact([]))
+    # faces are adjacent when a vertex of each is within two edges of the other's
+    adjacency = {tuple(e) for e in np.sort(mesh.topology.edges, axis=1)}
+
+    def ring(v):
+        return {b for a, b in adjacency if a == v} | {a for a, b in adjacency if b == v}
+
+    two_rings = {u for v in faces[0] for w in ring(v) | {v} for u in ring(w) | {w}}
+    expected = np.array([bool(set(f) & two_rings) for f in faces])
+    assert np.array_equal(checker.faces_adjacent(np.zeros(len(faces), int), np.arange(len(faces))),
+                          expected)
+    assert expected.sum() < len(faces) // 4

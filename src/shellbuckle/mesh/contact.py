@@ -414,6 +414,13 @@ class ContactChecker:
         lo, hi = np.minimum(i, j), np.maximum(i, j)
         return (lo == hi) | self._ring.contains(lo * self.topology.n_vertices + hi)
 
+    def faces_adjacent(self, f, g) -> np.ndarray:
+        """Whether faces ``f`` and ``g`` (int arrays, same shape) have a vertex each within
+        ``rings`` edges of each other."""
+        F = self.topology.faces
+        a, b = F[np.asarray(f, dtype=np.int64)], F[np.asarray(g, dtype=np.int64)]
+        return self.adjacent(a[..., :, None], b[..., None, :]).any(axis=(-2, -1))
+
     def share_vertex(self, f, g) -> np.ndarray:
         """Whether faces ``f`` and ``g`` (int arrays, same shape) have a vertex in common."""
         f, g = np.asarray(f, dtype=np.int64), np.asarray(g, dtype=np.int64)

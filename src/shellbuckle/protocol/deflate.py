@@ -213,8 +213,6 @@ class Context:
     contact: ContactChecker
     solver: object
     c0: float = field(default=2.0)
-    near: object = field(default=None, repr=False)
-    """Boolean sparse matrix: vertices at most ``FOLD_RINGS`` edges apart (see ``_folded``)."""
 
 
 def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
@@ -232,17 +230,17 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0,
-                  near=_near_vertices(mesh, FOLD_RINGS))
+                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0)
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
 
 def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before=None,
-            iterations=0, wall_s=0.0) -> dict:
-    """The per-step record (SPEC §7 columns) of the conformation ``X``."""
+            iterations=0, wall_s=0.0, contact=None) -> dict:
+    """The per-step record (SPEC §7 columns) of the conformation ``X``; ``contact``, if
+    given, is ``ctx.contact.check(X)`` already computed."""
     parts = ctx.energy.parts(X)
     E = parts["E_stretch"] + parts["E_bend"]
-    contact = ctx.contact.check(X)
+    contact = contact if contact is not None else ctx.contact.check(X)
     dV = 1.0 - ctx.volume.value(X) / ctx.V0
     return {
         "target_dV_over_V": float(target), "dV_over_V": float(dV),
@@ -305,42 +303,15 @@ def _tangled(ctx: Context, E: float, V_target, X_start: np.ndarray) -> bool:
     return E > admissible + 0.05 * abs(admissible) + ctx.params.kappa
 
 
-FOLD_RINGS = 2
-"""Faces whose vertices are at most this many edges apart intersect in a fold, not a contact."""
-
-
-def _near_vertices(mesh: Mesh, rings: int):
-    """Boolean CSR matrix of vertex pairs at most ``rings`` edges apart."""
-    import scipy.sparse as sp
-
-    edges = np.asarray(mesh.topology.edges)
-    n = mesh.n_vertices
-    A = sp.coo_matrix((np.ones(2 * len(edges), dtype=bool),
-                       (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                      shape=(n, n)).tocsr() + sp.identity(n, dtype=bool, format="csr")
-    near = A
-    for _ in range(rings - 1):
-        near = near @ A
-    return near.astype(bool).tocsr()
-
-
-def local_pairs(near, faces: np.ndarray, pairs) -> bool:
-    """Whether every face pair in ``pairs`` has a vertex of one within the ``near``
-    neighbourhood of a vertex of the other (and there is at least one pair)."""
-    pairs = np.asarray(pairs).reshape(-1, 2)
-    return len(pairs) > 0 and all(near[np.ix_(faces[f], faces[g])].nnz > 0 for f, g in pairs)
-
-
-def _folded(ctx: Context, X: np.ndarray) -> bool:
-    """Whether the surface intersects itself only where neighbouring faces meet: a fold left
-    by the jiggle (a triangle folded over an edge keeps its metric, so at large gamma the fold
-    can be a local minimum), not the contact of distant parts of the shell that ends a run.
-    Such a step is jiggled again with half the amplitude, like a tangled one."""
-    if ctx.near is None:
-        return False
-    contact = ctx.contact.check(X)
-    return bool(contact.intersects) and local_pairs(ctx.near, np.asarray(ctx.mesh.faces),
-                                                      contact.pairs)
+def only_local(checker: ContactChecker, contact) -> bool:
+    """Whether the surface intersects itself (``contact``, a result of ``checker.check``) only
+    where neighbouring faces meet (a vertex of each within the checker's ``rings`` edges): a
+    fold left by the jiggle (a triangle folded over an edge keeps its metric, so at large gamma
+    the fold can be a local minimum), not the contact of distant parts of the shell that ends a
+    run. Such a step is jiggled again with half the amplitude, like a tangled one."""
+    pairs = np.asarray(contact.pairs).reshape(-1, 2)
+    return bool(contact.intersects) and len(pairs) > 0 and bool(
+        checker.faces_adjacent(pairs[:, 0], pairs[:, 1]).all())
 
 
 def step(ctx: Context, state: State):
@@ -364,6 +335,7 @@ def step(ctx: Context, state: State):
     iterations = 0
     retries = JIGGLE_RETRIES if p.method in ("newton", "alternate") and sigma > 0 else 0
     for attempt in range(retries + 1):
+        contact = None
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
         X = jiggle(state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X)
@@ -378,17 +350,18 @@ def step(ctx: Context, state: State):
             break
         if not result.success and _tangled(ctx, result.fun, V_target, state.X):
             why = f"no convergence ({result.message}; E = {result.fun:.6g})"
-        elif _folded(ctx, result.x):
-            why = "a fold of the mesh (only neighbouring faces intersect)"
         else:
-            break
+            contact = ctx.contact.check(result.x)
+            if not only_local(ctx.contact, contact):
+                break
+            why = "a fold of the mesh (only neighbouring faces intersect)"
         log.warning("step %d: %s after a jiggle of std %.3g; jiggling again with half of it",
                     k, why, sigma)
         sigma *= 0.5
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
-                     wall_s=time.perf_counter() - t0)
+                     wall_s=time.perf_counter() - t0, contact=contact)
     record["step"] = k
     record["jiggle_sigma"] = float(sigma)
     record["jiggle_attempts"] = attempt + 1
