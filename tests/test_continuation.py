@@ -1,11 +1,6 @@
 """Paths in gamma and c0 at fixed volume: invariances, consistency, resuming, bad input."""
 
 import json
-import os
-import signal
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
@@ -21,7 +16,7 @@ from shellbuckle.protocol.deflate import Protocol
 from shellbuckle.run import (Run, compare_paths, continue_from, continue_in_parameter, deflate,
                              resume)
 
-from test_run import _compare  # tables identical but for the wall time
+from test_run import _compare, kill_9_after_steps  # tables identical but for the wall time
 
 GAMMA0 = 271.0
 PARENT = dict(dv=0.03, until=0.27, jiggle=0.02, seed=7)
@@ -173,14 +168,7 @@ continue_in_parameter(sys.argv[1], -1, sys.argv[2], gamma=2333.0, increments=6)
 def test_kill_9_then_resume_gives_the_same_table(parent, tmp_path):
     whole = continue_in_parameter(parent, -1, tmp_path / "whole", gamma=2333.0, increments=6)
     out = tmp_path / "killed"
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(parent.path), str(out)])
-    deadline = time.time() + 120
-    while time.time() < deadline and child.poll() is None:
-        if len(list((out / "steps").glob("step_*.h5"))) >= 3:
-            break
-        time.sleep(0.02)
-    os.kill(child.pid, signal.SIGKILL)
-    child.wait()
+    kill_9_after_steps([_CHILD, str(parent.path), str(out)], out)
     before = Run.open(out).steps
     assert before == list(range(len(before))) and len(before) >= 1
     done = resume(out)

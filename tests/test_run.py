@@ -51,17 +51,22 @@ deflate(icosphere(4), ShellParameters.from_gamma(271.0, nu=1/3), out=sys.argv[1]
 """
 
 
-def test_kill_9_then_resume_gives_the_same_table(tmp_path, uninterrupted):
-    out = tmp_path / "run"
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(out)])
-    deadline = time.time() + 120
-    steps = out / "steps"
+def kill_9_after_steps(args: list, out, n_steps: int = 3, timeout: float = 120.0) -> None:
+    """Run ``python -c args...`` writing a run into ``out`` and ``kill -9`` it once ``n_steps``
+    step files exist (or after ``timeout`` s, or when it has ended)."""
+    child = subprocess.Popen([sys.executable, "-c", *args])
+    deadline = time.time() + timeout
     while time.time() < deadline and child.poll() is None:
-        if steps.is_dir() and len([p for p in steps.glob("step_*.h5")]) >= 3:
+        if len(list((out / "steps").glob("step_*.h5"))) >= n_steps:
             break
-        time.sleep(0.05)
+        time.sleep(0.02)
     os.kill(child.pid, signal.SIGKILL)
     child.wait()
+
+
+def test_kill_9_then_resume_gives_the_same_table(tmp_path, uninterrupted):
+    out = tmp_path / "run"
+    kill_9_after_steps([_CHILD, str(out)], out)
     before = Run.open(out).steps
     assert before == list(range(len(before))) and len(before) >= 1
     done = resume(out)

@@ -83,7 +83,8 @@ class ShellEnergy:
         return self.stretching.gradient(X) + self.bending.gradient(X)
 
     def hessian(self, X) -> sp.csr_matrix:
-        return (self.stretching.hessian(X) + self.bending.hessian(X)).tocsr()
+        stretching, bending = self.hessian_terms(X)
+        return (stretching + bending).tocsr()
 
     def hessian_terms(self, X) -> list:
         """The Hessian as the list of its terms (stretching, bending), each a CSR matrix whose
