@@ -58,3 +58,25 @@ def test_restore_volume_reaches_the_target_to_round_off():
     target = 0.8 * volume.value(mesh.X)
     Y, err = restore_volume(volume, X, target)
     assert err <= 1e-14 and abs(volume.value(Y) - target) <= 1e-14 * target
+
+
+def test_restore_volume_moves_along_the_normal_of_the_trial_point():
+    """The restoration is one move along grad V at the trial point (the root of the exact
+    cubic), and agrees with the Newton iteration along successive normals to second order in
+    the volume defect."""
+    mesh = spring_shell(3)[0]
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    X = mesh.X + 0.05 * np.random.default_rng(4).standard_normal(mesh.X.shape)
+    g = volume.gradient(X)
+    for defect in (1e-2, 1e-4):
+        target = (1.0 - defect) * volume.value(X)
+        Y, err = restore_volume(volume, X, target)
+        assert err <= 1e-15
+        t = np.sum((Y - X) * g) / np.sum(g * g)
+        assert np.abs(Y - X - t * g).max() <= 1e-14 * np.abs(X).max()
+
+        class Plain:  # the same volume without its cubic: Newton along successive normals
+            value, gradient = volume.value, volume.gradient
+        Z, err_plain = restore_volume(Plain(), X, target)
+        assert err_plain <= 1e-14
+        assert np.abs(Z - Y).max() <= 10 * defect ** 2 * np.abs(X).max()

@@ -76,3 +76,31 @@ def test_reversed_orientation_gives_the_negative_volume():
     m = icosphere(3)
     assert Volume(m.faces[:, ::-1].copy(), m.n_vertices).value(m.X) == pytest.approx(
         -Volume(m.faces, m.n_vertices).value(m.X), rel=1e-14)
+
+
+def test_volume_along_a_line_is_the_exact_cubic(perturbed):
+    """V(X + t D) is a polynomial of degree 3 in t (V is linear in each vertex): the cubic of
+    ``along`` matches direct evaluations, its slope at 0 is grad V . D, and its curvature
+    D^T H D."""
+    m, X = perturbed
+    vol = Volume(m.faces, m.n_vertices)
+    D = np.random.default_rng(5).standard_normal(X.shape)
+    c = vol.along(X, D)
+    for t in (-1.7, -0.2, 0.3, 2.5):
+        assert np.polyval(c[::-1], t) == pytest.approx(vol.value(X + t * D), rel=1e-12, abs=1e-12)
+    assert c[0] == pytest.approx(vol.value(X), rel=1e-14)
+    assert c[1] == pytest.approx(np.sum(vol.gradient(X) * D), rel=1e-12)
+    assert 2 * c[2] == pytest.approx(D.ravel() @ (vol.hessian(X) @ D.ravel()), rel=1e-12)
+    value, grad = vol.value_and_gradient(X)
+    assert value == vol.value(X)
+    np.testing.assert_array_equal(grad, vol.gradient(X))
+
+
+def test_hessian_has_no_diagonal_blocks(perturbed):
+    """V is linear in each vertex, so d2V/dx_v2 = 0."""
+    m, X = perturbed
+    H = Volume(m.faces, m.n_vertices).hessian(X).toarray()
+    blocks = H.reshape(m.n_vertices, 3, m.n_vertices, 3)
+    v = np.arange(m.n_vertices)
+    assert np.abs(blocks[v, :, v, :]).max() == 0.0
+    assert np.abs(H).max() > 0.0

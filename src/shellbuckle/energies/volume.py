@@ -2,6 +2,17 @@
 
 V = (1/6) sum_f x0 . (x1 x x2) over faces ``(x0, x1, x2)`` with outward orientation
 (divergence theorem). It is invariant under translations and rotations.
+
+The volume is cubic in the positions and linear in each vertex, which the kernels use:
+
+- value and gradient are explicit component arithmetic on the corner coordinates (no
+  ``np.cross`` over small axes), the gradient summed per vertex by one ``bincount`` per
+  coordinate;
+- the Hessian has no diagonal blocks and its entries are linear in ``X``: its CSR data is one
+  product ``B @ X.ravel()`` with a sparse matrix ``B`` built once per mesh;
+- along a straight line the volume is an exact cubic in the step length
+  (:meth:`Volume.along`), so the constraint can be restored along a direction by solving a
+  cubic instead of iterating (see :func:`shellbuckle.solve.linesearch.restore_volume`).
 """
 
 from __future__ import annotations
@@ -14,12 +25,13 @@ import scipy.sparse as sp
 from .assembly import ElementAssembler
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[v]_x`` of ``v (..., 3)``, shape ``(..., 3, 3)``."""
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
+def _cross(a, b):
+    """Cross products of the columns of two ``(3, n)`` arrays (given as triples of rows)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,25 +41,80 @@ class Volume:
     faces: np.ndarray
     n_vertices: int
     _assembler: ElementAssembler = field(init=False, repr=False)
+    _corner: np.ndarray = field(init=False, repr=False)
+    _hessian_map: sp.csr_matrix = field(init=False, repr=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "_assembler", ElementAssembler(self.faces, self.n_vertices))
+        faces = np.asarray(self.faces, dtype=np.int64)
+        assembler = ElementAssembler(faces, self.n_vertices)
+        object.__setattr__(self, "_assembler", assembler)
+        object.__setattr__(self, "_corner", np.ascontiguousarray(faces.T))
+        object.__setattr__(self, "_hessian_map", self._build_hessian_map(faces, assembler))
+
+    def _corners(self, X: np.ndarray):
+        """Corner coordinates as three triples of ``(F,)`` arrays."""
+        XT = np.asarray(X, dtype=np.float64).T
+        return [tuple(XT[c][self._corner[k]] for c in range(3)) for k in range(3)]
 
     def value(self, X: np.ndarray) -> float:
-        x0, x1, x2 = (X[self.faces[:, k]] for k in range(3))
-        return float(np.einsum("ij,ij->", x0, np.cross(x1, x2)) / 6.0)
+        x0, x1, x2 = self._corners(X)
+        return float(_dot(x0, _cross(x1, x2)).sum() / 6.0)
+
+    def _scatter(self, local) -> np.ndarray:
+        """Sum per-corner vectors ``local[k]`` (triples of ``(F,)``) into a ``(V, 3)`` array."""
+        idx = self._corner.ravel()
+        g = np.empty((self.n_vertices, 3))
+        for c in range(3):
+            w = np.concatenate([local[0][c], local[1][c], local[2][c]])
+            g[:, c] = np.bincount(idx, weights=w, minlength=self.n_vertices)
+        return g / 6.0
 
     def gradient(self, X: np.ndarray) -> np.ndarray:
-        x0, x1, x2 = (X[self.faces[:, k]] for k in range(3))
-        local = np.stack([np.cross(x1, x2), np.cross(x2, x0), np.cross(x0, x1)], axis=1) / 6.0
-        return self._assembler.gradient(local)
+        x0, x1, x2 = self._corners(X)
+        return self._scatter((_cross(x1, x2), _cross(x2, x0), _cross(x0, x1)))
+
+    def value_and_gradient(self, X: np.ndarray) -> tuple[float, np.ndarray]:
+        x0, x1, x2 = self._corners(X)
+        c12 = _cross(x1, x2)
+        return (float(_dot(x0, c12).sum() / 6.0),
+                self._scatter((c12, _cross(x2, x0), _cross(x0, x1))))
+
+    def along(self, X: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """Coefficients ``c`` of the exact cubic ``V(X + t D) = c0 + c1 t + c2 t^2 + c3 t^3``."""
+        a, b, c = self._corners(X)
+        da, db, dc = self._corners(D)
+        bc = _cross(b, c)
+        bdc = [u + v for u, v in zip(_cross(b, dc), _cross(db, c))]
+        dbdc = _cross(db, dc)
+        return np.array([_dot(a, bc).sum(), (_dot(da, bc) + _dot(a, bdc)).sum(),
+                         (_dot(da, bdc) + _dot(a, dbdc)).sum(), _dot(da, dbdc).sum()]) / 6.0
 
     def hessian(self, X: np.ndarray) -> sp.csr_matrix:
-        x = X[self.faces]  # (F, 3, 3)
-        local = np.zeros((len(self.faces), 3, 3, 3, 3))
-        for a in range(3):
-            b, c = (a + 1) % 3, (a + 2) % 3
-            # d/dx_b (x_b x x_c) = -[x_c]_x ; d/dx_c (x_b x x_c) = [x_b]_x
-            local[:, a, :, b, :] = -_skew(x[:, c]) / 6.0
-            local[:, a, :, c, :] = _skew(x[:, b]) / 6.0
-        return self._assembler.hessian(local.reshape(-1, 9, 9))
+        data = self._hessian_map @ np.asarray(X, dtype=np.float64).ravel()
+        a = self._assembler
+        return sp.csr_matrix((data, a.indices, a.indptr), shape=(a.n_dofs, a.n_dofs))
+
+    @staticmethod
+    def _build_hessian_map(faces: np.ndarray, assembler: ElementAssembler) -> sp.csr_matrix:
+        """``B`` with ``Hessian data = B @ X.ravel()``: the block of a face's vertex pair
+        ``(p, q)`` is ``-[x_r]_x / 6`` if ``q`` follows ``p`` in the face, ``+[x_r]_x / 6`` if it
+        precedes it (``r`` the third vertex, ``[v]_x`` the cross-product matrix); diagonal
+        blocks vanish."""
+        skew = [(0, 1, 2, -1.0), (0, 2, 1, 1.0), (1, 0, 2, 1.0), (1, 2, 0, -1.0),
+                (2, 0, 1, -1.0), (2, 1, 0, 1.0)]  # ([v]_x)[i, j] = sign v[k]
+        slots = assembler.slot.reshape(len(faces), 9, 9)
+        rows, cols, vals = [], [], []
+        for p in range(3):
+            for q in range(3):
+                if p == q:
+                    continue
+                r = 3 - p - q
+                sign = -1.0 if q == (p + 1) % 3 else 1.0
+                for i, j, k, s in skew:
+                    rows.append(slots[:, 3 * p + i, 3 * q + j])
+                    cols.append(3 * faces[:, r] + k)
+                    vals.append(np.full(len(faces), sign * s / 6.0))
+        B = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(assembler.nnz, assembler.n_dofs))
+        B.sum_duplicates()
+        return B
