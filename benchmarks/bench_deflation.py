@@ -71,9 +71,9 @@ class _CountingSolver:
     def __init__(self, inner):
         self.inner, self.n_factor = inner, 0
 
-    def factor(self, A, upper=False):
+    def factor(self, A, upper=False, approximate=False):
         self.n_factor += 1
-        return self.inner.factor(A, upper=True) if upper else self.inner.factor(A)
+        return self.inner.factor(A, upper=upper, approximate=approximate)
 
     def solve(self, b):
         return self.inner.solve(b)

@@ -38,7 +38,11 @@ factors in single precision (``iparm[27] = 1``: about 1.7 times faster, 55 ms ag
 on the matrix below) and refines every solve with ``refinement`` (2) double-precision
 residual steps; it is an option, not the default, because the inertia of a matrix with
 eigenvalues within ~1e-7 of its scale (the soft post-buckling modes are ~1e-6) is then less
-certain. It is one to two orders of magnitude faster
+certain. A double-precision solver factors a matrix in single precision when asked with
+``factor(A, approximate=True)`` (a second PARDISO handle with its own symbolic analysis,
+``refinement = 0``): the Newton method does so for the shifted, positive definite
+preconditioner of its relaxation (:mod:`.newton`), whose solves are corrected by L-BFGS and
+never give a reported inertia; QDLDL and SuperLU ignore the flag. It is one to two orders of magnitude faster
 than QDLDL on shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
 the 3594-vertex mesh (10.8k rows, 0.64M entries) has 3.0M entries in ``L`` and its numeric
 factorization takes about 1.3 GFlop. It runs on one thread so that results are reproducible.
@@ -96,7 +100,7 @@ class QDLDLSolver:
         self.n_symbolic = 0
         self.n_numeric = 0
 
-    def factor(self, A, upper: bool = False) -> None:
+    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
         # CSC upper triangle; triu and tocsc keep explicit zeros, so the pattern is stable
         upper = sp.csc_matrix(A) if upper else sp.triu(A, format="csc")
         self._signs = None
@@ -137,7 +141,7 @@ class SuperLUSolver:
         self.n_symbolic = 0
         self.n_numeric = 0
 
-    def factor(self, A, upper: bool = False) -> None:
+    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
         if upper:
             A = A + sp.triu(A, k=1).T
         A = sp.csc_matrix(A)
@@ -214,6 +218,8 @@ class PardisoSolver:
         self._signs = None
         self.n_symbolic = 0
         self.n_numeric = 0
+        self._approximate = None  # single-precision twin for factor(..., approximate=True)
+        self._active = self
 
     def _call(self, phase: int, data, b=None, x=None) -> int:
         ct = self._ct
@@ -245,7 +251,17 @@ class PardisoSolver:
         except Exception:  # interpreter shutdown: the library may already be gone
             pass
 
-    def factor(self, A, upper: bool = False) -> None:
+    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
+        """Factor ``A`` (only its upper triangle is read; ``upper``: ``A`` is that triangle as
+        sorted CSR). ``approximate``: in single precision without refinement, for a double
+        solver (see the module docstring); the following solves and inertia are its."""
+        if approximate and self.precision == "double":
+            if self._approximate is None:
+                self._approximate = PardisoSolver(self.n_threads, "single", refinement=0)
+            self._active = self._approximate
+            self._approximate.factor(A, upper)
+            return
+        self._active = self
         if upper and sp.issparse(A) and A.format == "csr" and A.has_sorted_indices:
             upper = A
         else:
@@ -287,6 +303,8 @@ class PardisoSolver:
         return x.astype(np.float64)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
+        if self._active is not self:
+            return self._active.solve(b)
         b = np.asarray(b, dtype=np.float64)
         x = self._solve_factor(b)
         if self.precision == "single":  # iterative refinement with double residuals
@@ -296,7 +314,7 @@ class PardisoSolver:
         return x
 
     def inertia(self) -> tuple[int, int, int]:
-        return self._signs
+        return self._active._signs
 
 
 _BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoSolver}
