@@ -122,7 +122,7 @@ def test_newton_leaves_the_symmetric_saddle():
     stuck = newton(energy, volume, X0, 0.7 * V0, escape_saddles=False)
     assert stuck.success and stuck.inertia > 0
     assert tangent_inertia_dense(energy, volume, stuck.x) == stuck.inertia
-    res = newton(energy, volume, X0, 0.7 * V0, max_iter=200)  # most steps are quasi-Newton
+    res = newton(energy, volume, X0, 0.7 * V0)
     assert res.success and res.inertia == 0
     assert tangent_inertia_dense(energy, volume, res.x) == 0
     assert res.fun < 0.9 * stuck.fun

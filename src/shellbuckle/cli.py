@@ -249,7 +249,8 @@ def _register_deflate(sub) -> None:
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
                        help="minimizer (default newton)")
     proto.add_argument("--max-iter", type=int, default=200,
-                       help="iterations of each minimization at most (default 200; a small "
+                       help="Newton steps (factorizations) of each minimization at most, or "
+                            "iterations with --method cg/gd (default 200; a small "
                             "budget with --method cg quenches as a fixed Surface Evolver script)")
     proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
     proto.add_argument("--no-prerelax", action="store_true",

@@ -143,7 +143,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
     instead of the initial mesh. The jiggle is Surface Evolver's at ``temperature`` (default
     0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length; give at most one.
-    ``max_iter`` bounds the iterations of each minimization: with ``method="cg"`` or ``"gd"``
+    ``max_iter`` bounds each minimization (Newton steps, i.e. factorizations, with Newton's
+    method; iterations with the others): with ``method="cg"`` or ``"gd"``
     a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
     paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
     ``prerelax`` starts every Newton minimization with the preconditioned relaxation (see

@@ -63,7 +63,8 @@ amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many t
 table records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
 
 DEFAULT_MAX_ITER = 200
-"""Iterations of one minimization at most (Newton converges well within it)."""
+"""Newton steps (factorizations) of one minimization at most, not counting the quasi-Newton
+steps between them; iterations with ``method="cg"`` or ``"gd"``."""
 
 DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
 """Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate

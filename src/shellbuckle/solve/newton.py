@@ -107,6 +107,10 @@ Newton or quasi-Newton tail moves by far less; the soft eigenvalues change by ~1
 ``mean|diag K|`` over such a distance), else the matrix is factored at the point. Defaults:
 ``tol_grad = 1e-8``, ``atol_grad = 1e-10``, ``tol_energy = 1e-10``, ``max_iter = 100``. The
 volume constraint then holds to round-off (``~1e-15`` relative).
+
+``max_iter`` bounds the Newton steps, i.e. the factorizations of ``K`` (the costly part);
+the quasi-Newton steps that reuse a factorization (at most ``max_quasi`` per Newton step) and
+the relaxation's steps are not counted against it. ``nit`` counts every accepted step.
 """
 
 from __future__ import annotations
@@ -296,7 +300,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     V_target : float
         Enclosed volume to hold.
     tol_grad, atol_grad, tol_energy, max_iter :
-        Convergence criteria, see the module docstring.
+        Convergence criteria, see the module docstring (``max_iter`` counts Newton steps,
+        not the quasi-Newton steps between them).
     solver : None, "auto", "qdldl", "superlu", "pardiso" or a solver object
         The sparse symmetric-indefinite factorization (:mod:`.linear`; default "auto":
         PARDISO if Intel MKL loads, else QDLDL). Pass the same object to successive calls to
@@ -369,7 +374,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     pairs, n_quasi, quasi_ok, previous, r_history = [], 0, False, None, []
     need_gradient, hessian_fresh = True, False
-    for k in range(max_iter + 1):
+    k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
+    while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
             r_norm = float(np.linalg.norm(r))
@@ -414,7 +420,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 success, message = True, "converged"
                 break
             if k == max_iter:
-                message = f"maximum number of iterations ({max_iter}) reached"
+                message = f"maximum number of Newton iterations ({max_iter}) reached"
                 break
             s, slope_s, curv_s = nt.step(r, volume.value(X) - V_target)
             d, curv_d = None, 0.0
@@ -435,17 +441,18 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                     success, message = True, "converged (no further decrease within round-off)"
                     break
                 if retries < 3:  # same point and Hessian, stronger damping
-                    retries += 1
+                    retries, k = retries + 1, k + 1
                     mu = _damping_after(mu, curv_s, 1.0 / 16.0)
                     continue
                 message = "line search failed to decrease the energy"
                 break
             kind, alpha, E_new, X_new, rho = found
             mu = _damping_next(mu, curv_s, kind, alpha, rho)
+            k += 1
         log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g "
-                  "rho=%.3g", k, E_new, r_norm, lam, inertia, mu, kind, alpha, rho)
+                  "rho=%.3g", nit, E_new, r_norm, lam, inertia, mu, kind, alpha, rho)
         if history:
-            records.append(dict(iteration=k, energy=E_new, grad_norm=r_norm, lam=lam,
+            records.append(dict(iteration=nit, energy=E_new, grad_norm=r_norm, lam=lam,
                                 inertia=inertia, mu=mu, step=kind, alpha=alpha, rho=rho))
         previous = (X, r) if kind != "curvature" else None
         dE, E, X, retries = E_new - E, E_new, X_new, 0
