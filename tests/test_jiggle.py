@@ -129,37 +129,42 @@ def test_a_step_that_merely_crawls_is_not_jiggled_again(monkeypatch):
 
 
 def test_a_fold_is_told_from_a_contact_of_distant_faces():
-    # the classification behind re-jiggling a fold: intersecting faces within two rings are a
-    # fold of the mesh; a pair from opposite sides of the shell is a contact that ends the run
+    # the classification behind re-jiggling a fold: intersecting faces within FOLD_RINGS rings
+    # are a fold of the mesh; a pair from opposite sides of the shell is a contact that ends
+    # the run
     from types import SimpleNamespace
 
     from shellbuckle.mesh.contact import ContactChecker
-    from shellbuckle.protocol.deflate import only_local
+    from shellbuckle.protocol.deflate import FOLD_RINGS, only_local
 
-    mesh = icosphere(4)
+    mesh = icosphere(12)
     faces = np.asarray(mesh.faces)
     checker = ContactChecker(mesh.topology)
-    assert checker.rings == 2
-    centres = mesh.X[faces].mean(axis=1)
-    order = np.argsort(np.linalg.norm(centres - centres[0], axis=1))
-    close, far = order[6], order[-1]
+    # graph distances between faces by a plain breadth-first search over the edges
+    neighbours = [set() for _ in range(mesh.n_vertices)]
+    for a, b in mesh.topology.edges:
+        neighbours[a].add(b)
+        neighbours[b].add(a)
+    depth = {int(v): 0 for v in faces[0]}
+    frontier = set(depth)
+    for d in range(1, FOLD_RINGS + 2):
+        frontier = {u for v in frontier for u in neighbours[v]} - set(depth)
+        depth.update({u: d for u in frontier})
+    expected = np.array([min(depth.get(int(v), np.inf) for v in f) for f in faces])
+    expected[expected > FOLD_RINGS] = np.inf
+    got = checker.face_distance(np.zeros(len(faces), int), np.arange(len(faces)), FOLD_RINGS)
+    assert np.array_equal(got, expected)
+    assert 0 < np.isfinite(expected).sum() < len(faces) // 4
 
     def contact(pairs):
         pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         return SimpleNamespace(intersects=len(pairs) > 0, pairs=pairs)
 
-    assert only_local(checker, contact([(0, close)]))
+    edge_ring, outside = np.flatnonzero(expected == FOLD_RINGS)[0], np.flatnonzero(~np.isfinite(expected))
+    centres = mesh.X[faces].mean(axis=1)
+    far = outside[np.argmax(np.linalg.norm(centres[outside] - centres[0], axis=1))]
+    assert only_local(checker, contact([(0, edge_ring)]))
+    assert not only_local(checker, contact([(0, outside[0])]))
     assert not only_local(checker, contact([(0, far)]))
-    assert not only_local(checker, contact([(0, close), (0, far)]))  # any distant pair: contact
+    assert not only_local(checker, contact([(0, edge_ring), (0, far)]))  # any distant pair
     assert not only_local(checker, contact([]))
-    # faces are adjacent when a vertex of each is within two edges of the other's
-    adjacency = {tuple(e) for e in np.sort(mesh.topology.edges, axis=1)}
-
-    def ring(v):
-        return {b for a, b in adjacency if a == v} | {a for a, b in adjacency if b == v}
-
-    two_rings = {u for v in faces[0] for w in ring(v) | {v} for u in ring(w) | {w}}
-    expected = np.array([bool(set(f) & two_rings) for f in faces])
-    assert np.array_equal(checker.faces_adjacent(np.zeros(len(faces), int), np.arange(len(faces))),
-                          expected)
-    assert expected.sum() < len(faces) // 4

@@ -78,6 +78,7 @@ from itertools import chain
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .topology import Topology
@@ -378,6 +379,7 @@ class ContactChecker:
         self.topology = topology
         self.rings = int(rings)
         self.tol = float(tol)
+        self._graph = None  # vertex adjacency for face_distance, built when first needed
         V, F = topology.n_vertices, topology.n_faces
         adjacency = sp.csr_matrix((np.ones(len(topology.vertex_neighbors), dtype=np.int32),
                                    topology.vertex_neighbors, topology.vertex_neighbors_ptr),
@@ -414,12 +416,24 @@ class ContactChecker:
         lo, hi = np.minimum(i, j), np.maximum(i, j)
         return (lo == hi) | self._ring.contains(lo * self.topology.n_vertices + hi)
 
-    def faces_adjacent(self, f, g) -> np.ndarray:
-        """Whether faces ``f`` and ``g`` (int arrays, same shape) have a vertex each within
-        ``rings`` edges of each other."""
+    def face_distance(self, f, g, limit: int) -> np.ndarray:
+        """Edges on the shortest mesh path between a vertex of face ``f`` and one of face
+        ``g`` (int arrays, same shape), or ``inf`` when more than ``limit``; a breadth-first
+        search from the vertices of the ``f`` faces, meant for a few pairs."""
         F = self.topology.faces
         a, b = F[np.asarray(f, dtype=np.int64)], F[np.asarray(g, dtype=np.int64)]
-        return self.adjacent(a[..., :, None], b[..., None, :]).any(axis=(-2, -1))
+        if a.size == 0:
+            return np.zeros(a.shape[:-1])
+        if self._graph is None:
+            e = self.topology.edges
+            n = self.topology.n_vertices
+            A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+            self._graph = (A + A.T).tocsr()
+        sources, row = np.unique(a, return_inverse=True)
+        dist = csgraph.dijkstra(self._graph, unweighted=True, indices=sources,
+                                limit=float(limit))
+        d = dist[row.reshape(a.shape)[..., :, None], b[..., None, :]]
+        return d.min(axis=(-2, -1))
 
     def share_vertex(self, f, g) -> np.ndarray:
         """Whether faces ``f`` and ``g`` (int arrays, same shape) have a vertex in common."""

@@ -304,15 +304,22 @@ def _tangled(ctx: Context, E: float, V_target, X_start: np.ndarray) -> bool:
     return E > admissible + 0.05 * abs(admissible) + ctx.params.kappa
 
 
-def only_local(checker: ContactChecker, contact) -> bool:
+FOLD_RINGS = 5
+"""Intersecting faces whose vertices are at most this many edges apart on the mesh are a fold
+(:func:`only_local`)."""
+
+
+def only_local(checker: ContactChecker, contact, rings: int = FOLD_RINGS) -> bool:
     """Whether the surface intersects itself (``contact``, a result of ``checker.check``) only
-    where neighbouring faces meet (a vertex of each within the checker's ``rings`` edges): a
-    fold left by the jiggle (a triangle folded over an edge keeps its metric, so at large gamma
-    the fold can be a local minimum), not the contact of distant parts of the shell that ends a
-    run. Such a step is jiggled again with half the amplitude, like a tangled one."""
+    where nearby faces meet (a vertex of each within ``rings`` edges): a fold left by the jiggle
+    (a triangle folded over an edge keeps its metric, so at large gamma the fold can be a local
+    minimum; on the thin shells of the wrinkled regime a crumple spans up to three rings), not
+    the contact of distant parts of the shell that ends a run (opposite walls of a dent are
+    tens of edges apart on the mesh). Such a step is jiggled again with half the amplitude,
+    like a tangled one."""
     pairs = np.asarray(contact.pairs).reshape(-1, 2)
     return bool(contact.intersects) and len(pairs) > 0 and bool(
-        checker.faces_adjacent(pairs[:, 0], pairs[:, 1]).all())
+        (checker.face_distance(pairs[:, 0], pairs[:, 1], rings) <= rings).all())
 
 
 def step(ctx: Context, state: State):

@@ -139,6 +139,8 @@ RELAX_TOL = 1e-5
 relative, over ``RELAX_WINDOW`` steps."""
 RELAX_WINDOW = 5
 RELAX_MEMORY = 20
+JAM_STEPS = 10
+"""Newton steps without progress after which a minimization stops as stalled (:func:`_jammed`)."""
 QUASI_MIN_ALPHA = 0.05
 """A quasi-Newton step cut below this fraction of its length ends the reuse of a factorization."""
 """Secant pairs kept by the relaxation's L-BFGS."""
@@ -375,6 +377,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     pairs, n_quasi, quasi_ok, previous, r_history = [], 0, False, None, []
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
+    newton_trail = []  # (E, |r|) after each Newton step
     while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
@@ -449,6 +452,15 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             kind, alpha, E_new, X_new, rho = found
             mu = _damping_next(mu, curv_s, kind, alpha, rho)
             k += 1
+            newton_trail.append((E_new, r_norm))
+            if not grad_ok and _jammed(newton_trail, tol_energy):
+                X, E = X_new, E_new
+                lam, r, gE, gV = nt.gradients(X)
+                r_norm = float(np.linalg.norm(r))
+                message = (f"stalled: {JAM_STEPS} Newton steps lowered the energy by less than "
+                           f"{tol_energy:g} relative and the gradient by less than half")
+                nit += 1
+                break
         log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g "
                   "rho=%.3g", nit, E_new, r_norm, lam, inertia, mu, kind, alpha, rho)
         if history:
@@ -516,6 +528,17 @@ def _certified(fact, X: np.ndarray, max_displacement: float) -> bool:
     ``X``: the points differ by at most ``max_displacement`` per vertex."""
     return (fact is not None and fact[1] == 0.0 and fact[2] == 0
             and _max_displacement(X - fact[0]) <= max_displacement)
+
+
+def _jammed(trail: list, tol_energy: float) -> bool:
+    """Over the last ``JAM_STEPS`` Newton steps the energy fell by at most ``tol_energy``
+    relative and the projected gradient by less than half: the iterate is stuck far from
+    stationarity (e.g. on a triangle folded by the jiggle, where the shift grows without bound
+    and the line search takes steps of 1e-7), and more Newton steps only cost factorizations."""
+    if len(trail) <= JAM_STEPS:
+        return False
+    (E_old, r_old), (E_new, r_new) = trail[-1 - JAM_STEPS], trail[-1]
+    return E_old - E_new <= tol_energy * abs(E_new) and r_new > 0.5 * r_old
 
 
 def _stalled(history: list, window: int = 3, ratio: float = 0.9, progress: float = 0.3) -> bool:
