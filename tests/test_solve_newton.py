@@ -249,3 +249,33 @@ def test_kkt_pattern_does_not_depend_on_values():
         assert np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
     assert np.allclose(sum(energy.hessian_terms(X1)).toarray(), energy.hessian(X1).toarray(),
                        rtol=0, atol=1e-12)
+
+
+def test_a_gauge_lost_during_a_minimization_is_replaced():
+    """Pinned dofs that fixed the rigid motions at the start can stop doing so as the shell
+    deforms (here: x, y, z of vertex a, x, y of vertex b and y of vertex c, with c moved onto
+    the line ab, so the rotation about that line leaves all six unchanged). Newton's method must
+    notice and pin others, or K on the free dofs is singular and the residual on the pinned dofs
+    stays (a late step of a gamma = 271 run stalled 4.5e-4 kappa above its minimum that way)."""
+    from shellbuckle.solve.linear import make_solver
+    from shellbuckle.solve.newton import _fixes_gauge, _Newton
+
+    mesh, energy, volume, V0 = shell(4, 500)
+    X = mesh.X.copy()
+    a, b = 0, int(np.argmax(np.linalg.norm(X - X[0], axis=1)))  # nearly antipodal
+    c = int(np.argmin(np.linalg.norm(X - 0.5 * (X[a] + X[b]) - [0.0, 0.0, 0.3], axis=1)))
+    pinned = np.array([3 * a, 3 * a + 1, 3 * a + 2, 3 * b, 3 * b + 1, 3 * c + 1])
+    assert _fixes_gauge(X, pinned)
+    nt = _Newton(energy, volume, 0.9 * V0, make_solver(), X, True, pinned,
+                 np.random.default_rng(0))
+    assert np.array_equal(nt.pinned, np.sort(pinned)) and not nt.gauge_lost(X)
+    Y = X.copy()
+    Y[c] = X[a] + 0.5 * (X[b] - X[a])  # c on the line ab
+    assert np.linalg.cond(rigid_modes(Y)[pinned]) > 1e12
+    assert nt.gauge_lost(Y)
+    assert nt.set_gauge(Y) and _fixes_gauge(Y, nt.pinned) and not nt.gauge_lost(Y)
+    assert len(nt.free) == X.size - 6 and nt.kkt.n == len(nt.free)
+    # a minimization started on the lost gauge still converges to a KKT point
+    res = newton(energy, volume, 0.97 * X, 0.9 * V0, pinned=pinned)
+    assert res.success and res.inertia == 0
+    assert_kkt(energy, volume, res, 0.9 * V0)

@@ -408,6 +408,10 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             quasi_ok = alpha >= QUASI_MIN_ALPHA
             n_quasi += 1
         else:
+            if nt.gauge_lost(X):
+                log.info("newton: the pinned dofs no longer fix the rigid motions; pinning others")
+                nt.set_gauge(X)
+                fact, hessian_fresh = None, False
             if not hessian_fresh:
                 nt.assemble(X, lam, gV)
                 hessian_fresh = True
@@ -621,12 +625,12 @@ class _Newton:
         self.energy, self.volume, self.V_target = energy, volume, V_target
         self.linsolver, self.rng = linsolver, rng
         self.n_dofs = X.size
+        self.pinned = None
         self.free = np.arange(self.n_dofs)
         if project_rigid:
-            if pinned is None or not _fixes_gauge(X, pinned):
-                pinned = pinned_dofs(X)
-            self.free = np.setdiff1d(self.free, pinned)
-        self.kkt = kkt_assembler(self.free, self.n_dofs)
+            self.set_gauge(X, pinned)
+        else:
+            self.kkt = kkt_assembler(self.free, self.n_dofs)
         try:
             self._approximate_ok = "approximate" in inspect.signature(linsolver.factor).parameters
         except (TypeError, ValueError):
@@ -634,6 +638,25 @@ class _Newton:
         self.clock = _Clock()
         self.diag_scale = 1.0
         self._terms = self._data = None
+
+    def set_gauge(self, X, pinned=None) -> bool:
+        """Pin ``pinned`` (or, if those do not fix the rigid motions at ``X``, the dofs of
+        :func:`pinned_dofs` at ``X``); whether the gauge changed."""
+        if pinned is None or not _fixes_gauge(X, pinned):
+            pinned = pinned_dofs(X)
+        pinned = np.sort(np.asarray(pinned))
+        if self.pinned is not None and np.array_equal(pinned, self.pinned):
+            return False
+        self.pinned = pinned
+        self.free = np.setdiff1d(np.arange(self.n_dofs), pinned)
+        self.kkt = kkt_assembler(self.free, self.n_dofs)
+        return True
+
+    def gauge_lost(self, X) -> bool:
+        """Whether the pinned dofs no longer fix the rigid motions at ``X`` (the shell moved
+        so that some rigid motion leaves all of them unchanged: ``K`` on the free dofs is then
+        singular, and the residual on the pinned dofs cannot be removed)."""
+        return self.pinned is not None and not _fixes_gauge(X, self.pinned)
 
     def value(self, X) -> float:
         with self.clock("assembly"):
