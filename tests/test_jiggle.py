@@ -111,6 +111,41 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     assert np.allclose(r.x, state.X, atol=1e-12)
 
 
+def test_an_unconverged_step_that_intersects_itself_is_jiggled_again(monkeypatch):
+    # not a minimum, so its self-intersection (here: one vertex pushed through the far side of
+    # the shell) must not end the run as a contact; a converged one does
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+
+    mesh = icosphere(6)
+    ctx, state = deflate.init(mesh, ShellParameters.from_gamma(271.0, nu=1.0 / 3.0),
+                              Protocol(schedule=(0.019,), c0_cycle=False, seed=4))
+    minimize, calls = deflate._minimize, []
+    spiked = mesh.X.copy()
+    spiked[0] = -1.5 * mesh.X[0]
+    assert ctx.contact.check(spiked).intersects
+    assert not deflate.only_local(ctx.contact, ctx.contact.check(spiked))
+
+    def first_crosses(*args, converged=False, **kwargs):
+        result = minimize(*args, **kwargs)
+        calls.append(result.success)
+        if len(calls) == 1:  # at a low energy, so not "tangled"
+            return dataclasses.replace(result, x=spiked, success=converged)
+        return result
+
+    monkeypatch.setattr(deflate, "_minimize", first_crosses)
+    _, record = deflate.step(ctx, state)
+    assert record["jiggle_attempts"] == 2 and record["converged"]
+    assert not record["self_intersecting"]
+    calls.clear()
+    monkeypatch.setattr(deflate, "_minimize",
+                        lambda *a, **k: first_crosses(*a, converged=True, **k))
+    stopped, record = deflate.step(ctx, state)
+    assert record["jiggle_attempts"] == 1 and record["self_intersecting"] and stopped.stopped
+
+
 def test_a_step_that_merely_crawls_is_not_jiggled_again(monkeypatch):
     # unconverged but at a sensible energy (a soft mode, not a tangle): no retry
     import dataclasses

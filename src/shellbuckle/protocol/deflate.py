@@ -59,8 +59,10 @@ energy of an admissible state (the shrunk reference sphere, or the step's start 
 target volume; a large jiggle can fold a triangle over one of its edges, which
 keeps the triangle's metric and so costs no stretching energy, and the minimizer may stay
 tangled; see ``_tangled``) is started again from the step's start with a jiggle of half the
-amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; the
-table records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
+amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; so is a
+step whose surface intersects itself only in a fold (``only_local``), or that intersects itself
+without having converged (not a minimum, so its contact does not end the run). The table
+records the std used (``jiggle_sigma``) and the attempts (``jiggle_attempts``)."""
 
 DEFAULT_MAX_ITER = 200
 """Newton steps (factorizations) of one minimization at most, not counting the quasi-Newton
@@ -360,9 +362,15 @@ def step(ctx: Context, state: State):
             why = f"no convergence ({result.message}; E = {result.fun:.6g})"
         else:
             contact = ctx.contact.check(result.x)
-            if not only_local(ctx.contact, contact):
+            if not contact.intersects:
                 break
-            why = "a fold of the mesh (only neighbouring faces intersect)"
+            if only_local(ctx.contact, contact):
+                why = "a fold of the mesh (only neighbouring faces intersect)"
+            elif not result.success:  # not a minimum: its contact cannot end the run
+                why = (f"no convergence ({result.message}; E = {result.fun:.6g}) and a "
+                       f"self-intersection")
+            else:
+                break
         log.warning("step %d: %s after a jiggle of std %.3g; jiggling again with half of it",
                     k, why, sigma)
         sigma *= 0.5
