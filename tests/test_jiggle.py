@@ -195,7 +195,8 @@ def test_a_fold_is_told_from_a_contact_of_distant_faces():
         pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
         return SimpleNamespace(intersects=len(pairs) > 0, pairs=pairs)
 
-    edge_ring, outside = np.flatnonzero(expected == FOLD_RINGS)[0], np.flatnonzero(~np.isfinite(expected))
+    edge_ring = np.flatnonzero(expected == FOLD_RINGS)[0]
+    outside = np.flatnonzero(~np.isfinite(expected))
     centres = mesh.X[faces].mean(axis=1)
     far = outside[np.argmax(np.linalg.norm(centres[outside] - centres[0], axis=1))]
     assert only_local(checker, contact([(0, edge_ring)]))

@@ -139,11 +139,11 @@ RELAX_TOL = 1e-5
 relative, over ``RELAX_WINDOW`` steps."""
 RELAX_WINDOW = 5
 RELAX_MEMORY = 20
+"""Secant pairs kept by the relaxation's L-BFGS."""
 JAM_STEPS = 10
 """Newton steps without progress after which a minimization stops as stalled (:func:`_jammed`)."""
 QUASI_MIN_ALPHA = 0.05
 """A quasi-Newton step cut below this fraction of its length ends the reuse of a factorization."""
-"""Secant pairs kept by the relaxation's L-BFGS."""
 
 
 def rigid_modes(X: np.ndarray) -> np.ndarray:
@@ -422,7 +422,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 message = "could not make the tangent Hessian positive definite by a shift"
                 break
             mu, inertia, indefinite = shift
-            fact, pairs, n_quasi, quasi_ok, r_history = (X, mu, inertia), [], 0, True, [(r_norm, E)]
+            fact, pairs, n_quasi, quasi_ok = (X, mu, inertia), [], 0, True
+            r_history = [(r_norm, E)]
             if converged and (not escape_saddles or inertia == 0 or not indefinite):
                 success, message = True, "converged"
                 break
