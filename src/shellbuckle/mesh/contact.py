@@ -379,11 +379,11 @@ class ContactChecker:
         self.topology = topology
         self.rings = int(rings)
         self.tol = float(tol)
-        self._graph = None  # vertex adjacency for face_distance, built when first needed
         V, F = topology.n_vertices, topology.n_faces
         adjacency = sp.csr_matrix((np.ones(len(topology.vertex_neighbors), dtype=np.int32),
                                    topology.vertex_neighbors, topology.vertex_neighbors_ptr),
                                   shape=(V, V))
+        self._adjacency = adjacency  # symmetric; also the graph of face_distance
         step = (adjacency + sp.identity(V, dtype=np.int32, format="csr")).tocsr()
         ring = sp.identity(V, dtype=np.int32, format="csr")
         for _ in range(self.rings):
@@ -424,13 +424,8 @@ class ContactChecker:
         a, b = F[np.asarray(f, dtype=np.int64)], F[np.asarray(g, dtype=np.int64)]
         if a.size == 0:
             return np.zeros(a.shape[:-1])
-        if self._graph is None:
-            e = self.topology.edges
-            n = self.topology.n_vertices
-            A = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-            self._graph = (A + A.T).tocsr()
         sources, row = np.unique(a, return_inverse=True)
-        dist = csgraph.dijkstra(self._graph, unweighted=True, indices=sources,
+        dist = csgraph.dijkstra(self._adjacency, unweighted=True, indices=sources,
                                 limit=float(limit))
         d = dist[row.reshape(a.shape)[..., :, None], b[..., None, :]]
         return d.min(axis=(-2, -1))
