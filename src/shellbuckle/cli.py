@@ -202,13 +202,16 @@ def _params_from_args(args, fallback=None):
         return ShellParameters.from_material(args.E, args.sigma, args.d, args.R)
     if fallback is not None and args.gamma is None and args.nu is None:
         return fallback
-    gamma = args.gamma if args.gamma is not None else (fallback.gamma if fallback else MAIN_JOB_GAMMA)
+    default_gamma = fallback.gamma if fallback else MAIN_JOB_GAMMA
+    gamma = args.gamma if args.gamma is not None else default_gamma
     nu = args.nu if args.nu is not None else (fallback.nu if fallback else 1.0 / 3.0)
     return ShellParameters.from_gamma(gamma, nu=nu)
 
 
 def _register_deflate(sub) -> None:
     """``shellbuckle deflate``: the paper's deflation protocol, stored step by step."""
+    from .protocol.deflate import DEFAULT_MAX_ITER
+
     parser = sub.add_parser(
         "deflate", help="deflate a shell with the paper's protocol (the main job)",
         description="Stepwise deflation at fixed enclosed volume (Quilliet et al. 2008, §4.1): "
@@ -248,9 +251,9 @@ def _register_deflate(sub) -> None:
                        help="bending discretization (default juelicher)")
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
                        help="minimizer (default newton)")
-    proto.add_argument("--max-iter", type=int, default=200,
+    proto.add_argument("--max-iter", type=int, default=DEFAULT_MAX_ITER,
                        help="Newton steps (factorizations) of each minimization at most, or "
-                            "iterations with --method cg/gd (default 200; a small "
+                            f"iterations with --method cg/gd (default {DEFAULT_MAX_ITER}; a small "
                             "budget with --method cg quenches as a fixed Surface Evolver script)")
     proto.add_argument("--c0", type=float, help="spontaneous curvature c = c1 + c2 (default 2/R)")
     proto.add_argument("--no-prerelax", action="store_true",

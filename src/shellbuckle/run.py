@@ -134,8 +134,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
-    ``seed``); ``params`` to gamma = 15163, nu = 1/3 (it wrinkles). The schedule is ``dv, 2 dv, ...`` up to
-    ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
+    ``seed``); ``params`` to gamma = 15163, nu = 1/3 (it wrinkles). The schedule is
+    ``dv, 2 dv, ...`` up to ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
     ``pressures`` (a list of external overpressures, units kappa/R^3) switches to pressure

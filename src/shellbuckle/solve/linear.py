@@ -42,8 +42,8 @@ certain. A double-precision solver factors a matrix in single precision when ask
 ``factor(A, approximate=True)`` (a second PARDISO handle with its own symbolic analysis,
 ``refinement = 0``): the Newton method does so for the shifted, positive definite
 preconditioner of its relaxation (:mod:`.newton`), whose solves are corrected by L-BFGS and
-never give a reported inertia; QDLDL and SuperLU ignore the flag. It is one to two orders of magnitude faster
-than QDLDL on shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
+never give a reported inertia; QDLDL and SuperLU ignore the flag. PARDISO is one to two
+orders of magnitude faster than QDLDL on shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
 the 3594-vertex mesh (10.8k rows, 0.64M entries) has 3.0M entries in ``L`` and its numeric
 factorization takes about 1.3 GFlop. It runs on one thread so that results are reproducible.
 

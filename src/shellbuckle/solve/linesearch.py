@@ -8,8 +8,8 @@ is brought back onto the surface by :func:`restore_volume`, a move along the con
 correction ``t = -(V(x) - V_target) / |n|^2`` is found by a scalar Newton iteration (for a
 sphere the move is a uniform radial scaling). Volumes without that cubic are restored by the
 Newton iteration ``x <- x - (V(x) - V_target) grad V(x) / |grad V(x)|^2``. The energy along
-the restored curve ``phi(alpha) = E(R(x + alpha p))`` is the merit function: its slope at 0 is ``r . p`` with ``r = grad E - lam grad V`` the projected
-gradient, and its curvature is that of the Lagrangian ``Hess E - lam Hess V``, so a Newton step
+the restored curve ``phi(alpha) = E(R(x + alpha p))`` is the merit function: its slope at 0
+is ``r . p`` with ``r = grad E - lam grad V`` the projected gradient, and its curvature is that of the Lagrangian ``Hess E - lam Hess V``, so a Newton step
 is accepted in full near a minimum.
 
 A step is accepted when it satisfies the Armijo condition
