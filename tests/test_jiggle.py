@@ -204,3 +204,52 @@ def test_a_fold_is_told_from_a_contact_of_distant_faces():
     assert not only_local(checker, contact([(0, far)]))
     assert not only_local(checker, contact([(0, edge_ring), (0, far)]))  # any distant pair
     assert not only_local(checker, contact([]))
+
+
+def test_two_faces_folded_onto_each_other_are_found():
+    # oracle: geometry. Moving the far vertex l of a hinge (i, j, k, l) onto k puts the face
+    # (j, i, l) on (i, j, k): outward normals opposite, dihedral angle 180 degrees. Rotating l
+    # about the edge by 1 degree from there is no longer flat.
+    from scipy.spatial.transform import Rotation
+
+    from shellbuckle.protocol.deflate import FLAT_FOLD_TOL, folded_flat
+
+    mesh = icosphere(3)
+    hinges = mesh.topology.hinges
+    assert folded_flat(mesh.X, hinges) is None
+    h = 17
+    i, j, k, l = hinges[h]
+    X = mesh.X.copy()
+    X[l] = X[k]
+    reason = folded_flat(X, hinges)
+    assert reason is not None and f"edge {i}-{j}" in reason and "180.000 degrees" in reason
+    axis = (X[j] - X[i]) / np.linalg.norm(X[j] - X[i])
+    for angle, flat in ((np.degrees(FLAT_FOLD_TOL) / 2, True), (1.0, False)):
+        Y = X.copy()
+        Y[l] = X[i] + Rotation.from_rotvec(np.radians(angle) * axis).apply(X[k] - X[i])
+        assert (folded_flat(Y, hinges) is not None) == flat
+
+
+def test_a_minimization_abandoned_on_a_fold_is_jiggled_again(monkeypatch):
+    # a minimization stopped by the fold test counts as tangled whatever its energy
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.solve.newton import ABANDONED
+
+    mesh = icosphere(3)
+    ctx, state = deflate.init(mesh, ShellParameters.from_gamma(271.0, nu=1.0 / 3.0),
+                              Protocol(schedule=(0.019,), seed=4))
+    minimize, calls = deflate._minimize, []
+
+    def first_abandoned(*args, **kwargs):
+        result = minimize(*args, **kwargs)
+        calls.append(result)
+        if len(calls) == 1:
+            return dataclasses.replace(result, success=False, message=f"{ABANDONED}: a fold")
+        return result
+
+    monkeypatch.setattr(deflate, "_minimize", first_abandoned)
+    _, record = deflate.step(ctx, state)
+    assert record["jiggle_attempts"] == 2 and record["converged"] and len(calls) == 4

@@ -279,3 +279,36 @@ def test_a_gauge_lost_during_a_minimization_is_replaced():
     res = newton(energy, volume, 0.97 * X, 0.9 * V0, pinned=pinned)
     assert res.success and res.inertia == 0
     assert_kkt(energy, volume, res, 0.9 * V0)
+
+
+def test_abandon_is_asked_after_the_relaxation_and_each_newton_step_only():
+    # oracle: the result without the hook. A hook that never objects changes nothing; one that
+    # always objects stops right after the relaxation, or after the first Newton step without
+    # one; a converged point is never offered to it.
+    from shellbuckle.solve.newton import ABANDONED
+
+    mesh, energy, volume, V0 = shell(3, 1000)
+    shrunk = 0.95 ** (1 / 3) * mesh.X
+    X0 = shrunk + 0.01 * np.random.default_rng(5).standard_normal(mesh.X.shape)
+    asked = []
+
+    def never(X):
+        asked.append(X.copy())
+
+    ref = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True)
+    res = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                 abandon=never)
+    assert ref.success and np.array_equal(res.x, ref.x) and res.nit == ref.nit
+    newton_steps = sum(h["step"] == "newton" for h in ref.history)
+    assert 1 <= len(asked) <= newton_steps + 1
+    assert all(not np.array_equal(X, ref.x) for X in asked)
+    stop = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                  abandon=lambda X: "a test")
+    assert not stop.success and stop.message == f"{ABANDONED}: a test"
+    assert {h["step"] for h in stop.history} == {"relax"}
+    first = newton(energy, volume, X0, 0.95 * V0, history=True, abandon=lambda X: "a test")
+    assert not first.success and [h["step"] for h in first.history] == ["newton"]
+    assert first.fun < energy.value(X0)
+    done = newton(energy, volume, ref.x, 0.95 * V0, precondition_at=ref.x,
+                  abandon=lambda X: "must not be asked")
+    assert done.success

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..energies.hinge import dihedral_angles
 from ..energies.total import BENDING_KINDS, ShellEnergy
 from ..energies.volume import Volume
 from ..mesh.contact import ContactChecker
@@ -40,7 +41,7 @@ from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..solve import minimize
 from ..solve.linear import make_solver
-from ..solve.newton import pinned_dofs
+from ..solve.newton import ABANDONED, pinned_dofs
 from ..solve.pressure import minimize_at_pressure
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
                      step_rng)
@@ -273,6 +274,30 @@ def at_parameter(ctx: Context, value: float) -> Context:
     return dataclasses.replace(ctx, energy=ctx.energy.with_c0(float(value)), c0=float(value))
 
 
+FLAT_FOLD_TOL = 1e-3
+"""A hinge whose dihedral angle is within this many radians of 180 degrees is folded flat
+(:func:`folded_flat`)."""
+
+
+def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -> str | None:
+    """Why ``X`` is tangled, or None: two faces sharing an edge lie on each other (the
+    dihedral angle between their outward normals is within ``tol`` of 180 degrees).
+
+    A large jiggle can flip a vertex across the opposite edge; the minimizer then drives the
+    angle of that hinge to exactly 180 degrees, the cut of the signed angle where the bending
+    energy jumps, and stays there with a large gradient (gamma = 271, dV/V = 0.55: 140
+    iterations and 40 factorizations before the stall test stops it). Converged shells stay far
+    from it (up to 45 degrees in the capsule regime, 145 degrees on the sharpest ridges of the
+    wrinkled regime on the paper's mesh)."""
+    theta = np.abs(dihedral_angles(X, hinges))
+    i = int(np.argmax(theta))
+    if np.pi - theta[i] > tol:
+        return None
+    return (f"the two faces at edge {int(hinges[i, 0])}-{int(hinges[i, 1])} are folded onto "
+            f"each other (dihedral angle {np.degrees(theta[i]):.3f} degrees), where the energy "
+            f"is not differentiable")
+
+
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
@@ -285,7 +310,9 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None):
     if p.method in ("newton", "alternate"):
         # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
-        options = {"solver": ctx.solver, "pinned": pinned_dofs(ctx.mesh.X)}
+        hinges = ctx.mesh.topology.hinges
+        options = {"solver": ctx.solver, "pinned": pinned_dofs(ctx.mesh.X),
+                   "abandon": lambda X: folded_flat(X, hinges)}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
     return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
@@ -358,7 +385,8 @@ def step(ctx: Context, state: State):
             iterations += flat.nit + result.nit
         if attempt == retries:
             break
-        if not result.success and _tangled(ctx, result.fun, V_target, state.X):
+        if not result.success and (result.message.startswith(ABANDONED)
+                                   or _tangled(ctx, result.fun, V_target, state.X)):
             why = f"no convergence ({result.message}; E = {result.fun:.6g})"
         else:
             contact = ctx.contact.check(result.x)

@@ -144,6 +144,8 @@ JAM_STEPS = 10
 """Newton steps without progress after which a minimization stops as stalled (:func:`_jammed`)."""
 QUASI_MIN_ALPHA = 0.05
 """A quasi-Newton step cut below this fraction of its length ends the reuse of a factorization."""
+ABANDONED = "abandoned"
+"""Start of the message of a minimization stopped by its ``abandon`` test."""
 
 
 def rigid_modes(X: np.ndarray) -> np.ndarray:
@@ -288,7 +290,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            inverse_iterations: int = 12, curvature_tol: float = 1e-8,
            inertia_step: float = 1e-4, max_quasi: int = 10, memory: int = 8, pinned=None,
            seed: int = 0, history: bool = False, precondition_at: np.ndarray | None = None,
-           relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL) -> MinimizeResult:
+           relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
+           abandon=None) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
     Parameters
@@ -350,6 +353,12 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         See the module docstring ("Preconditioned relaxation").
     relax_shift, relax_tol : float
         Shift of the preconditioner and stopping test of that relaxation.
+    abandon : callable, optional
+        ``abandon(X) -> str or None``, asked after the relaxation and after every Newton step
+        at a point that has not converged: a reason stops the minimization there
+        (``success = False``, message ``"abandoned: <reason>"``). The deflation protocol
+        gives up at once on a triangle folded onto its neighbour, where the energy is not
+        differentiable and no minimizer makes progress (it jiggles again instead).
 
     Returns
     -------
@@ -378,6 +387,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
+    ask = abandon is not None and precondition_at is not None  # ask ``abandon`` at this point
     while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
@@ -391,6 +401,11 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             if converged and (not want_inertia or _certified(fact, X, inertia_step * edge)):
                 success, message = True, "converged"
                 inertia = 0 if want_inertia else None
+                break
+            reason = abandon(X) if ask and not converged else None
+            ask = False
+            if reason:
+                message = f"{ABANDONED}: {reason}"
                 break
         quasi = None
         if (retries == 0 and quasi_ok and not converged and n_quasi < max_quasi
@@ -457,6 +472,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             kind, alpha, E_new, X_new, rho = found
             mu = _damping_next(mu, curv_s, kind, alpha, rho)
             k += 1
+            ask = abandon is not None
             newton_trail.append((E_new, r_norm))
             if not grad_ok and _jammed(newton_trail, tol_energy):
                 X, E = X_new, E_new
