@@ -312,3 +312,18 @@ def test_abandon_is_asked_after_the_relaxation_and_each_newton_step_only():
     done = newton(energy, volume, ref.x, 0.95 * V0, precondition_at=ref.x,
                   abandon=lambda X: "must not be asked")
     assert done.success
+
+
+@pytest.mark.parametrize("bending", ["juelicher", "evolver"])
+def test_fused_value_and_gradient_are_the_separate_ones(bending):
+    # oracle: the separate calls (Newton evaluates accepted points once, value and gradient
+    # together, and must see the same numbers) and central differences of the value
+    mesh = icosphere(3)
+    energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(500), bending=bending)
+    X = 0.97 * mesh.X + 0.01 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    E, g = energy.value_and_gradient(X)
+    assert E == energy.value(X) and np.array_equal(g, energy.gradient(X))
+    d = np.random.default_rng(3).standard_normal(X.shape)
+    h = 1e-6
+    fd = (energy.value(X + h * d) - energy.value(X - h * d)) / (2 * h)
+    assert float(np.sum(g * d)) == pytest.approx(fd, rel=1e-6)

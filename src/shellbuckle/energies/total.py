@@ -82,6 +82,12 @@ class ShellEnergy:
     def gradient(self, X) -> np.ndarray:
         return self.stretching.gradient(X) + self.bending.gradient(X)
 
+    def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
+        """``(value(X), gradient(X))`` from one pass over the mesh per term (the same numbers
+        as the two separate calls)."""
+        (Es, gs), (Eb, gb) = (_value_and_gradient(t, X) for t in (self.stretching, self.bending))
+        return float(Es + Eb), gs + gb
+
     def hessian(self, X) -> sp.csr_matrix:
         stretching, bending = self.hessian_terms(X)
         return (stretching + bending).tocsr()
@@ -93,3 +99,8 @@ class ShellEnergy:
         scatters the terms separately so that its KKT pattern, and with it the linear solver's
         ordering and round-off, never depend on the values."""
         return [self.stretching.hessian(X), self.bending.hessian(X)]
+
+
+def _value_and_gradient(term, X):
+    fused = getattr(term, "value_and_gradient", None)
+    return fused(X) if fused is not None else (term.value(X), term.gradient(X))

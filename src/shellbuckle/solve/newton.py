@@ -272,6 +272,34 @@ def _max_displacement(p: np.ndarray) -> float:
     return float(np.sqrt(np.einsum("ij,ij->i", p, p).max()))
 
 
+class _LastGradient:
+    """``energy`` whose values come with the gradient (``value_and_gradient``), the last of
+    which is kept: the point a line search accepts is evaluated once instead of twice (value,
+    then gradient). Other attributes are the energy's."""
+
+    def __init__(self, energy):
+        self.energy = energy
+        self._fused = energy.value_and_gradient
+        self._X = self._X_copy = self._g = None
+
+    def value(self, X) -> float:
+        E, self._g = self._fused(X)
+        self._X, self._X_copy = X, np.array(X, copy=True)
+        return E
+
+    def gradient(self, X) -> np.ndarray:
+        if X is self._X and np.array_equal(X, self._X_copy):
+            return self._g
+        return self.energy.gradient(X)
+
+    def __getattr__(self, name):
+        return getattr(self.energy, name)
+
+
+def _with_last_gradient(energy):
+    return _LastGradient(energy) if hasattr(energy, "value_and_gradient") else energy
+
+
 class _Clock:
     def __init__(self):
         self.t = defaultdict(float)
@@ -365,6 +393,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     MinimizeResult
     """
     t_start = time.perf_counter()
+    energy = _with_last_gradient(energy)
     X, V_target = check_problem(X0, V_target)
     X, verr = restore_volume(volume, X, V_target)
     if not verr <= 1e-12:
