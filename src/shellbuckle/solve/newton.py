@@ -30,7 +30,12 @@ them all unchanged (or given by the caller: the deflation protocol passes one se
 whole run, so that the KKT pattern and the solver's symbolic analysis never change). This is
 sparse, exact, and any rigid motion can be added to a step without changing the energy, so it
 removes exactly the six null modes. Inertia counts are therefore on the tangent space modulo
-rigid motions, like Surface Evolver's ``eigenneg``.
+rigid motions, like Surface Evolver's ``eigenneg``. Every step (Newton, quasi-Newton,
+negative curvature) is taken without its rigid-motion part (least squares at the current
+point): the pinned step carries whatever infinitesimal rotation makes the pinned dofs vanish,
+and over many steps the shell would rotate (26 degrees within one minimization at gamma = 271,
+dV/V = 0.6) until the pinned dofs hardly fix the rotations any more (a nearly singular ``K``:
+marginal negative eigenvalues and an iteration that stalls with the energy converged).
 
 Shift (Levenberg–Marquardt) and negative curvature
 --------------------------------------------------
@@ -439,7 +444,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         quasi = None
         if (retries == 0 and quasi_ok and not converged and n_quasi < max_quasi
                 and k < max_iter and not _stalled(r_history)):
-            quasi = nt.quasi_newton_step(r, pairs, volume.value(X) - V_target)
+            quasi = nt.quasi_newton_step(X, r, pairs, volume.value(X) - V_target)
         if quasi is not None:
             p, slope_p = quasi
             with nt.clock("line_search"):
@@ -474,10 +479,10 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             if k == max_iter:
                 message = f"maximum number of Newton iterations ({max_iter}) reached"
                 break
-            s, slope_s, curv_s = nt.step(r, volume.value(X) - V_target)
+            s, slope_s, curv_s = nt.step(X, r, volume.value(X) - V_target)
             d, curv_d = None, 0.0
             if escape_saddles and indefinite and (grad_ok or retries):
-                d, curv_d = nt.negative_curvature(inverse_iterations)
+                d, curv_d = nt.negative_curvature(X, inverse_iterations)
                 if curv_d >= -curvature_tol * nt.diag_scale:
                     d = None
                     if converged:
@@ -553,7 +558,8 @@ def _relax(nt, X, E, X_ref, shift, tol, max_it, max_step, tol_grad, atol_grad, h
         if previous is not None:
             _add_pair(pairs, X - previous[0], r - previous[1], RELAX_MEMORY)
         verr = volume.value(X) - V_target
-        quasi = nt.quasi_newton_step(r, pairs, verr) or nt.quasi_newton_step(r, [], verr)
+        quasi = (nt.quasi_newton_step(X, r, pairs, verr)
+                 or nt.quasi_newton_step(X, r, [], verr))
         if quasi is None:
             break
         with nt.clock("line_search"):
@@ -774,10 +780,24 @@ class _Newton:
         out[self.free] = y[:-1]
         return out.reshape(-1, 3)
 
-    def step(self, r, verr):
-        """Newton step ``s`` from the current factorization, its slope ``r.s`` and the
-        curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it."""
-        s = self.solve(-r.ravel()[self.free], -verr)
+    def without_rigid(self, X, p) -> np.ndarray:
+        """``p`` minus its least-squares component along the rigid motions at ``X`` (when the
+        gauge is pinned). A step solved with pinned dofs carries whatever rotation makes those
+        dofs vanish; removing it changes neither ``r.p`` (``r`` is orthogonal to rigid motions)
+        nor the linearized constraint, and keeps the shell from rotating step after step
+        (gamma = 271, dV/V = 0.6: 26 degrees within one minimization), which would leave the
+        pinned dofs a poor gauge (a nearly singular ``K``, marginal negative eigenvalues and a
+        stalled iteration)."""
+        if self.pinned is None:
+            return p
+        M = rigid_modes(X)
+        c = np.linalg.solve(M.T @ M, M.T @ p.ravel())
+        return p - (M @ c).reshape(p.shape)
+
+    def step(self, X, r, verr):
+        """Newton step ``s`` from the current factorization (rigid part removed), its slope
+        ``r.s`` and the curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it."""
+        s = self.without_rigid(X, self.solve(-r.ravel()[self.free], -verr))
         slope = float(np.einsum("ij,ij->", r, s))
         if not slope < 0:  # round-off at convergence, or unknown inertia: fall back to -r
             s = -r / self.diag_scale
@@ -786,7 +806,7 @@ class _Newton:
         curv = float(s.ravel() @ self.K_times(s)) / ss if ss > 0 else 0.0
         return s, slope, curv
 
-    def quasi_newton_step(self, r, pairs, verr):
+    def quasi_newton_step(self, X, r, pairs, verr):
         """L-BFGS step ``p = -H r`` (Nocedal & Wright, Algorithm 7.4) whose initial inverse
         Hessian ``H0`` is the current factorization (the tangent KKT solve, exact at the point
         where it was factored) and whose pairs are the steps taken since; ``(p, r.p)``, or
@@ -797,14 +817,15 @@ class _Newton:
             a = rho_i * float(s_i @ q)
             coefficients.append(a)
             q = q - a * y_i
-        z = self.solve(q[self.free], -verr).ravel()
+        # H0 in the same gauge as the secant pairs (steps without rigid part)
+        z = self.without_rigid(X, self.solve(q[self.free], -verr)).ravel()
         for (s_i, y_i, rho_i), a in zip(pairs, reversed(coefficients)):
             z += (a - rho_i * float(y_i @ z)) * s_i
-        p = z.reshape(-1, 3)
+        p = self.without_rigid(X, z.reshape(-1, 3))
         slope = float(np.einsum("ij,ij->", r, p))
         return (p, slope) if slope < 0 else None
 
-    def negative_curvature(self, n_iter: int):
+    def negative_curvature(self, X, n_iter: int):
         """Direction of most negative curvature of the tangent Hessian by inverse iteration
         with the current (positive definite on the tangent space) shifted factorization.
 
@@ -816,6 +837,7 @@ class _Newton:
             d = self.solve(v)
             v = d.ravel()[self.free]
             v /= np.linalg.norm(v)
+        d = self.without_rigid(X, d)
         d /= _max_displacement(d)
         return d, float(d.ravel() @ self.K_times(d))
 
