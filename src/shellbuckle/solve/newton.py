@@ -817,8 +817,7 @@ class _Newton:
             a = rho_i * float(s_i @ q)
             coefficients.append(a)
             q = q - a * y_i
-        # H0 in the same gauge as the secant pairs (steps without rigid part)
-        z = self.without_rigid(X, self.solve(q[self.free], -verr)).ravel()
+        z = self.solve(q[self.free], -verr).ravel()
         for (s_i, y_i, rho_i), a in zip(pairs, reversed(coefficients)):
             z += (a - rho_i * float(y_i @ z)) * s_i
         p = self.without_rigid(X, z.reshape(-1, 3))
