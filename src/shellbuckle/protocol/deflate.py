@@ -59,7 +59,8 @@ JIGGLE_RETRIES = 3
 energy of an admissible state (the shrunk reference sphere, or the step's start shrunk to the
 target volume; a large jiggle can fold a triangle over one of its edges, which
 keeps the triangle's metric and so costs no stretching energy, and the minimizer may stay
-tangled; see ``_tangled``) is started again from the step's start with a jiggle of half the
+tangled; see ``_tangled``), or that is abandoned because two faces lie folded onto each
+other (``folded_flat``), is started again from the step's start with a jiggle of half the
 amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; so is a
 step whose surface intersects itself only in a fold (``only_local``), or that intersects itself
 without having converged (not a minimum, so its contact does not end the run). The table
