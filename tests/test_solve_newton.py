@@ -17,7 +17,7 @@ from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.solve import minimize, newton
 from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
-from shellbuckle.solve.newton import KKTAssembler, pinned_dofs, rigid_modes
+from shellbuckle.solve.newton import KKTAssembler, pinned_dofs, remove_rigid, rigid_modes
 from test_solve_energies import spring_shell
 
 
@@ -144,6 +144,22 @@ def test_pinned_dofs_fix_the_rigid_gauge():
     pinned = pinned_dofs(X)
     assert len(set(pinned)) == 6
     assert np.linalg.matrix_rank(rigid_modes(X)[pinned]) == 6
+
+
+def test_remove_rigid_is_the_least_squares_projection_off_rigid_motions():
+    # oracle: the least-squares solve with the six rigid modes; the result is orthogonal to
+    # them, a rigid motion is removed entirely, and a rigid-free field is left unchanged
+    rng = np.random.default_rng(4)
+    X = icosphere(2).X * [1.0, 0.7, 0.4] + [0.3, -1.0, 2.0]
+    p = rng.standard_normal(X.shape)
+    M = rigid_modes(X)
+    expected = p - (M @ np.linalg.solve(M.T @ M, M.T @ p.ravel())).reshape(p.shape)
+    q = remove_rigid(X, p)
+    np.testing.assert_allclose(q, expected, atol=1e-13)
+    assert np.abs(M.T @ q.ravel()).max() < 1e-12 * np.abs(M.T @ p.ravel()).max()
+    rigid = (M @ rng.standard_normal(6)).reshape(X.shape)
+    assert np.abs(remove_rigid(X, rigid)).max() < 1e-13 * np.abs(rigid).max()
+    np.testing.assert_allclose(remove_rigid(X, q + rigid), q, atol=1e-12)
 
 
 def test_bad_problem_is_refused():

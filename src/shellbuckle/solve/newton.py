@@ -166,6 +166,24 @@ def rigid_modes(X: np.ndarray) -> np.ndarray:
     return modes.reshape(-1, 6)
 
 
+def remove_rigid(X: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``p (V, 3)`` minus its least-squares component along the rigid motions at ``X``.
+
+    The translations and the rotations about the centroid are orthogonal to each other, so the
+    projection is closed-form: the translation is the mean ``t`` of ``p`` and the rotation
+    ``w`` solves ``I w = sum_i c_i x p_i`` with the inertia tensor
+    ``I = sum_i (|c_i|^2 1 - c_i c_i^T)`` of the centred positions ``c``; the result is
+    ``p - t - w x c``, the same as the least-squares solve with :func:`rigid_modes` (six
+    small matrix products instead of a ``(3V, 6)`` array)."""
+    ones = np.full(len(X), 1.0 / len(X))
+    c = X - ones @ X
+    S, P = c.T @ c, c.T @ p  # sums of c_i c_i^T and of c_i p_i^T
+    w = np.linalg.solve(np.trace(S) * np.eye(3) - S,
+                        [P[1, 2] - P[2, 1], P[2, 0] - P[0, 2], P[0, 1] - P[1, 0]])
+    w_cross = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    return p - ones @ p - c @ w_cross.T
+
+
 def pinned_dofs(X: np.ndarray) -> np.ndarray:
     """Six dofs that fix the rigid-motion gauge: the first pivots of a column-pivoted QR of the
     transposed rigid modes, so that the rigid modes restricted to them are well conditioned."""
@@ -788,11 +806,7 @@ class _Newton:
         (gamma = 271, dV/V = 0.6: 26 degrees within one minimization), which would leave the
         pinned dofs a poor gauge (a nearly singular ``K``, marginal negative eigenvalues and a
         stalled iteration)."""
-        if self.pinned is None:
-            return p
-        M = rigid_modes(X)
-        c = np.linalg.solve(M.T @ M, M.T @ p.ravel())
-        return p - (M @ c).reshape(p.shape)
+        return p if self.pinned is None else remove_rigid(X, p)
 
     def step(self, X, r, verr):
         """Newton step ``s`` from the current factorization (rigid part removed), its slope
