@@ -198,6 +198,28 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
 
 # --------------------------------------------------------------------------- Dask sweeps
 
+def _worker_environment():
+    return {k: os.environ.get(k) for k in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS",
+                                           "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
+
+
+def test_local_workers_are_single_threaded_and_keep_glibc_malloc_defaults(monkeypatch):
+    # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ = 65536 by default, which freezes glibc's mmap
+    # threshold at 128 kB: a deflation step then page-faults ten times as often as in a plain
+    # process. The local cluster must leave it unset and pin the BLAS threads.
+    from shellbuckle.sweep import _client
+
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    client, owned = _client(None, 1)
+    try:
+        (env,) = client.run(_worker_environment).values()
+    finally:
+        for obj in owned:
+            obj.close()
+    assert env == {"MALLOC_TRIM_THRESHOLD_": None, "OMP_NUM_THREADS": "1",
+                   "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
 @pytest.fixture(scope="module")
 def reference_sweep(tmp_path_factory):
     """The small sweep run without interruption on a 2-worker local cluster."""
