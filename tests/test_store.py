@@ -433,3 +433,27 @@ def test_documented_snippet_reads_a_run_without_shellbuckle(tmp_path):
     assert got["E_total"] == [_record(k)["E_total"] for k in range(3)]
     assert got["columns"][0] == "step"
     assert re.fullmatch(r"[0-9a-f]{32}", got["run"]["run_id"])
+
+
+def test_versions_name_the_source_commit_when_run_from_a_git_checkout():
+    # oracle: git's own answer for the package directory; the package version alone does not
+    # tell two commits apart
+    package = Path(run_module.__file__).resolve().parents[1]
+    git = ["git", "-C", str(package)]
+    run_module.source_commit.cache_clear()
+    versions = run_module._versions()
+    try:
+        tracked = subprocess.run(git + ["ls-files", "--", "__init__.py"], capture_output=True,
+                                 text=True, check=True).stdout.strip()
+        head = subprocess.run(git + ["rev-parse", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        tracked = head = ""
+    if not tracked:
+        assert "shellbuckle_git" not in versions
+        return
+    commit = versions["shellbuckle_git"]
+    assert re.fullmatch(r"[0-9a-f]{12}(\+dirty)?", commit) and head.startswith(commit[:12])
+    dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
+                           text=True, check=True).stdout.strip()
+    assert commit.endswith("+dirty") == bool(dirty)

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import copy
 import datetime as _dt
+import functools
 import hashlib
 import io
 import json
@@ -68,6 +69,7 @@ import operator
 import os
 import platform
 import re
+import subprocess
 import sys
 import uuid
 from collections.abc import Mapping
@@ -184,7 +186,33 @@ def _versions() -> dict:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:  # pragma: no cover - not installed
             versions[name] = None
+    commit = source_commit()
+    if commit:
+        versions["shellbuckle_git"] = commit
     return versions
+
+
+@functools.lru_cache(maxsize=None)
+def source_commit() -> str | None:
+    """The git commit of shellbuckle's source when it runs from a git checkout (an editable
+    install), with ``+dirty`` if the package's files differ from it; None otherwise.
+
+    The package version does not tell two commits apart, and after buckling a run's
+    trajectory depends on the code down to round-off, so the commit is what reproduces a run."""
+    package = Path(__file__).resolve().parents[1]
+    git = ["git", "-C", str(package)]
+    try:
+        tracked = subprocess.run(git + ["ls-files", "--", "__init__.py"], capture_output=True,
+                                 text=True, timeout=10, check=True).stdout.strip()
+        if not tracked:
+            return None
+        commit = subprocess.run(git + ["rev-parse", "--short=12", "HEAD"], capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
+                               text=True, timeout=10, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return f"{commit}+dirty" if dirty else commit or None
 
 
 def _session() -> dict:
