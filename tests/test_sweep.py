@@ -196,6 +196,26 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
     assert again["outcome"] == "skipped" and _file_states(folder) == after
 
 
+def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
+                                                                      monkeypatch):
+    # max_iter = 1: every minimization stops unconverged, so the protocol warns at each step.
+    # As in a fresh worker process, nobody has configured logging (pytest's own handlers on
+    # the root logger are set aside for the test).
+    import logging
+
+    (point,) = SweepSpec(gamma=271, icosphere=3, until=0.04).points()
+    point["max_iter"] = 1
+    logger = logging.getLogger("shellbuckle")
+    monkeypatch.setattr(logging.getLogger(), "handlers", [])
+    assert not logger.handlers
+    result = run_point(point, tmp_path, analyze=False)
+    assert result["outcome"] == "finished"
+    lines = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+    assert any("did not converge" in l for l in lines)
+    assert all(l.startswith(f"{point['name']}: step ") for l in lines)
+    assert not logger.handlers  # removed with the run: later warnings are unlabelled again
+
+
 # --------------------------------------------------------------------------- Dask sweeps
 
 def _worker_environment():

@@ -37,9 +37,11 @@ import math
 import numbers
 import os
 import socket
+import threading
 import time
 import tomllib
 import traceback as _traceback
+from contextlib import contextmanager
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -387,6 +389,52 @@ def _worker_name() -> str | None:
         return None
 
 
+class _RunLabels(logging.Formatter):
+    """Prefixes a record with the name of the run that the logging thread is computing."""
+
+    def format(self, record):
+        text = super().format(record)
+        with _LABEL_LOCK:
+            label = _LABELS.get(record.thread)
+        return f"{label}: {text}" if label else text
+
+
+_LABEL_LOCK = threading.Lock()
+_LABELS: dict[int, str] = {}  # thread id -> name of the run it computes
+_label_handler: list = []  # the handler while runs compute, installed by the first of them
+
+
+@contextmanager
+def _named_logs(name: str):
+    """While this thread computes run ``name``, shellbuckle's warnings on stderr start with
+    that name: the workers of a sweep interleave the messages of many runs on one stream
+    ("step 22: minimizer did not converge" did not say which run). Only when logging is not
+    configured (no handler on the root or the ``shellbuckle`` logger, i.e. Python's
+    last-resort output); a configured format is left alone."""
+    logger = logging.getLogger("shellbuckle")
+    thread = threading.get_ident()
+    with _LABEL_LOCK:
+        if not _label_handler and (logger.handlers or logging.getLogger().handlers):
+            active = False
+        else:
+            active = True
+            if not _label_handler:
+                handler = logging.StreamHandler()
+                handler.setLevel(logging.WARNING)
+                handler.setFormatter(_RunLabels("%(message)s"))
+                logger.addHandler(handler)
+                _label_handler.append(handler)
+            _LABELS[thread] = name
+    try:
+        yield
+    finally:
+        if active:
+            with _LABEL_LOCK:
+                _LABELS.pop(thread, None)
+                if not _LABELS and _label_handler:
+                    logger.removeHandler(_label_handler.pop())
+
+
 def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     """Compute (or resume, or analyse) one run of a sweep; never raises for a failing run.
 
@@ -415,7 +463,8 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     try:
         from .run import Run
 
-        run = Run.open(folder) if state == "analyze" else _deflate(point, folder)
+        with _named_logs(name):
+            run = Run.open(folder) if state == "analyze" else _deflate(point, folder)
         status, message = run.status, run.store.meta.get("message")
         outcome = "finished" if status == "finished" else "paused"
     except Exception as exc:  # recorded, the sweep goes on
