@@ -203,20 +203,18 @@ def pinned_dofs(X: np.ndarray) -> np.ndarray:
     return np.sort(piv[:6])
 
 
-def _fixes_gauge(X: np.ndarray, pinned, max_cond: float | None = None) -> bool:
+def _fixes_gauge(X: np.ndarray, pinned) -> bool:
     """Whether the dofs ``pinned`` fix the rigid-motion gauge at ``X``: six distinct valid
-    dofs on which the rigid modes are conditioned to ``max_cond`` or, by default, to
-    :data:`GAUGE_MAX_COND` or twice the condition of the best choice at ``X``
-    (:func:`pinned_dofs`; above 10 only on very elongated shapes)."""
+    dofs on which the rigid modes are conditioned to :data:`GAUGE_MAX_COND`, or to twice the
+    condition of the best choice at ``X`` (:func:`pinned_dofs`; above 10 only on very
+    elongated shapes)."""
     pinned = np.asarray(pinned)
     if pinned.shape != (6,) or len(np.unique(pinned)) != 6 or pinned.min() < 0 \
             or pinned.max() >= X.size:
         return False
     modes = rigid_modes(X)
     cond = np.linalg.cond(modes[pinned])
-    if max_cond is not None or cond <= GAUGE_MAX_COND:
-        return bool(cond <= (GAUGE_MAX_COND if max_cond is None else max_cond))
-    return bool(cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
+    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
 
 
 class KKTAssembler:
