@@ -88,6 +88,7 @@ from shellbuckle.mesh.evolver_io import write_evolver  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.run import deflate  # noqa: E402
 from shellbuckle.solve.linesearch import projected_gradient  # noqa: E402
+from shellbuckle.store.run import source_commit  # noqa: E402
 
 EVOLVER_RELAX = r"""
 // relax(etol, confirm, maxit): minimize the energy at the current target volume.
@@ -355,15 +356,8 @@ def check(energy: ShellEnergy, volume: Volume, X: np.ndarray) -> dict:
 
 def source_version() -> str:
     """shellbuckle's version and, in a git checkout, its commit (``+dirty`` if src/ differs)."""
-    src = Path(shellbuckle.__file__).resolve().parent
-    try:
-        commit = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
-                                capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--", "."],
-                               capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return shellbuckle.__version__
-    return f"{shellbuckle.__version__} (git {commit}{'+dirty' if dirty else ''})"
+    commit = source_commit()
+    return f"{shellbuckle.__version__} (git {commit})" if commit else shellbuckle.__version__
 
 
 def shape_rows(faces, se_steps, our_steps) -> list[dict] | None:
