@@ -606,12 +606,11 @@ def _provenance(df) -> tuple[list[str], list[list[str]]]:
         if meta.get("parent"):
             protocol += f"; branched from {Path(meta['parent'].get('path', '')).name} step " \
                         f"{meta['parent'].get('step')}"
-        versions = ", ".join(f"{k} {v[k]}" for k in ("shellbuckle", "python", "numpy", "scipy")
-                             if v.get(k))
-        if v.get("shellbuckle_git"):
-            versions = versions.replace(f"shellbuckle {v.get('shellbuckle')}",
-                                        f"shellbuckle {v.get('shellbuckle')} (git "
-                                        f"{v['shellbuckle_git']})", 1)
+        shown = dict(v)
+        if v.get("shellbuckle") and v.get("shellbuckle_git"):
+            shown["shellbuckle"] = f"{v['shellbuckle']} (git {v['shellbuckle_git']})"
+        versions = ", ".join(f"{k} {shown[k]}" for k in ("shellbuckle", "python", "numpy", "scipy")
+                             if shown.get(k))
         rows.append([row["name"], fmt_number(row["gamma"]), fmt_number(row["nu"]),
                      fmt_number(row["seed"]) if pd.notna(row["seed"]) else "n/a",
                      f"{row['mesh']}, {m.get('n_vertices')} vertices, sha256 "
