@@ -218,6 +218,9 @@ class Context:
     contact: ContactChecker
     solver: object
     c0: float = field(default=2.0)
+    pinned: np.ndarray | None = None
+    """The six dofs that fix the rigid-motion gauge of every minimization of the run (chosen on
+    the reference mesh, :func:`~shellbuckle.solve.newton.pinned_dofs`)."""
 
 
 def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
@@ -235,7 +238,8 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0)
+                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0,
+                  pinned=pinned_dofs(mesh.X))
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
 
@@ -312,7 +316,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None):
         # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
         hinges = ctx.mesh.topology.hinges
-        options = {"solver": ctx.solver, "pinned": pinned_dofs(ctx.mesh.X),
+        options = {"solver": ctx.solver, "pinned": ctx.pinned,
                    "abandon": lambda X: folded_flat(X, hinges)}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
