@@ -1,9 +1,12 @@
+import os
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from shellbuckle.solve.linear import (PardisoSolver, QDLDLSolver, SingularFactorError,
-                                      SuperLUSolver, _load_mkl, make_solver)
+                                      SuperLUSolver, _load_mkl, check_threads, default_threads,
+                                      make_solver)
 
 BACKENDS = [QDLDLSolver, SuperLUSolver,
             pytest.param(PardisoSolver, marks=pytest.mark.skipif(_load_mkl() is None,
@@ -107,3 +110,48 @@ def test_single_precision_pardiso_with_refinement(seed):
     assert residual <= 1e-12 * cond ** 2 + 1e-13
     with pytest.raises(ValueError, match="precision must be"):
         PardisoSolver(precision="half")
+
+
+def _shell_like_matrix(n_side=60):
+    """A symmetric indefinite sparse matrix the size of a small shell KKT system (a 2D
+    Laplacian's 3x3-block stencil, shifted so that some pivots are negative): big enough that
+    PARDISO's factorization runs in parallel."""
+    lap1 = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n_side, n_side))
+    lap = sp.kronsum(lap1, lap1)
+    block = np.array([[2.0, 0.3, 0.1], [0.3, 1.5, 0.2], [0.1, 0.2, 1.0]])
+    return (sp.kron(lap, block) - 0.05 * sp.identity(3 * n_side * n_side)).tocsr()
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_gives_the_same_bits_on_any_number_of_threads():
+    A = _shell_like_matrix()
+    b = np.random.default_rng(3).standard_normal(A.shape[0])
+    results = []
+    for threads in (1, 2, 3):
+        solver = PardisoSolver(n_threads=threads)
+        solver.factor(A)
+        results.append((solver.inertia(), solver.solve(b)))
+    for inertia, x in results[1:]:
+        assert inertia == results[0][0]
+        assert np.array_equal(x, results[0][1])  # bitwise: reproducibility mode
+    assert results[0][0][1] > 0  # indefinite: Bunch-Kaufman pivots were exercised
+    np.testing.assert_allclose(A @ results[0][1], b, atol=1e-9 * np.abs(b).max())
+
+
+def test_threads_are_checked_and_default_to_the_environment(monkeypatch):
+    for bad in (0, -2, 1.5, "2", True):
+        with pytest.raises(ValueError, match=f"threads must be an integer >= 1, got {bad!r}"):
+            check_threads(bad)
+    with pytest.raises(ValueError, match="got 0"):
+        make_solver("qdldl", threads=0)
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    assert default_threads() == 3
+    monkeypatch.setenv("MKL_NUM_THREADS", "not a number")
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    assert default_threads() == 2
+    monkeypatch.delenv("MKL_NUM_THREADS")
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    assert 1 <= default_threads() <= (os.cpu_count() or 1)
+    if _load_mkl() is not None:
+        assert make_solver("pardiso", threads=2).n_threads == 2

@@ -267,9 +267,17 @@ def _register_deflate(sub) -> None:
     branch.add_argument("--step", type=int, default=-1,
                         help="the step of --from to start from (default: the last)")
     parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
+    _add_threads_option(parser)
     parser.add_argument("--no-plot", action="store_true", help="do not write the figure at the end")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_cmd_deflate)
+
+
+def _add_threads_option(parser) -> None:
+    parser.add_argument("--threads", type=int,
+                        help="threads of the sparse factorization (default: the cores this "
+                             "process may use, or MKL_NUM_THREADS); the results are the same "
+                             "on any number")
 
 
 def _cmd_deflate(args) -> int:
@@ -278,7 +286,10 @@ def _cmd_deflate(args) -> int:
     from .run import deflate, params_for_mesh, shell_from_file
 
     from .protocol.deflate import Protocol
+    from .solve.linear import check_threads
 
+    if args.threads is not None:
+        check_threads(args.threads)
     if args.from_run is not None:
         return _cmd_continue(args)
     choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
@@ -330,7 +341,7 @@ def _cmd_deflate(args) -> int:
                   bending=args.bending, method=args.method, max_iter=args.max_iter, c0=c0,
                   prerelax=not args.no_prerelax, out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
-                  pressures=pressures)
+                  pressures=pressures, threads=args.threads)
     return _report_run(run, plot=not args.no_plot)
 
 
@@ -382,6 +393,7 @@ def _register_resume(sub) -> None:
                             description="Continue the run in DIR from its last finished step; "
                                         "the result is the same as an uninterrupted run.")
     parser.add_argument("dir", metavar="DIR", help="run folder")
+    _add_threads_option(parser)
     parser.add_argument("--no-plot", action="store_true", help="do not write the figure at the end")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_cmd_resume)
@@ -390,7 +402,8 @@ def _register_resume(sub) -> None:
 def _cmd_resume(args) -> int:
     from .run import resume
 
-    return _report_run(resume(args.dir, progress=not args.quiet), plot=not args.no_plot)
+    return _report_run(resume(args.dir, progress=not args.quiet, threads=args.threads),
+                       plot=not args.no_plot)
 
 
 

@@ -24,6 +24,7 @@ from .params import ShellParameters
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
+from .solve.linear import check_threads
 from .store.run import RunStore
 
 log = logging.getLogger(__name__)
@@ -130,7 +131,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
             c0: float | None = None, prerelax: bool = True, out=None,
             progress: bool = False, max_steps: int | None = None,
-            form_factors=None, pressures=None) -> Run:
+            form_factors=None, pressures=None, threads: int | None = None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
@@ -149,8 +150,13 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
     ``prerelax`` starts every Newton minimization with the preconditioned relaxation (see
     :class:`~shellbuckle.protocol.deflate.Protocol`); off, Newton starts at once (slower).
+    ``threads``: threads of the sparse factorization (default: the cores this process may
+    use); a matter of speed only, the results are the same bits on any number.
     """
     from .mesh.random_sphere import random_sphere
+
+    if threads is not None:
+        threads = check_threads(threads)
 
     params = params or ShellParameters.from_gamma(MAIN_JOB_GAMMA, nu=1.0 / 3.0)
     mesh = mesh or random_sphere(3594, seed=seed)
@@ -169,16 +175,21 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     rest = None if form_factors is None else {"form_factors": np.asarray(form_factors, float)}
     store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
                             X0=mesh.X, faces=mesh.faces, rest=rest)
-    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
+                  threads=threads)
 
 
-def resume(path, *, progress: bool = False, max_steps: int | None = None) -> Run:
-    """Continue a stored run from its last finished step."""
+def resume(path, *, progress: bool = False, max_steps: int | None = None,
+           threads: int | None = None) -> Run:
+    """Continue a stored run from its last finished step (``threads`` as in :func:`deflate`)."""
+    if threads is not None:
+        threads = check_threads(threads)
     store = RunStore.resume(path)
     params = ShellParameters.from_dict(store.params)
     protocol = Protocol.from_dict(store.protocol)
     mesh = Mesh.from_arrays(store.X0, store.faces)
-    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
+                  threads=threads)
 
 
 def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
@@ -328,9 +339,9 @@ def _side(run, step: int) -> dict:
 
 
 def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
-           max_steps: int | None = None) -> Run:
+           max_steps: int | None = None, threads: int | None = None) -> Run:
     ctx, state = protocol_mod.init(mesh, params, protocol,
-                                   form_factors=store.rest.get("form_factors"))
+                                   form_factors=store.rest.get("form_factors"), threads=threads)
     try:
         last = store.last_step
         if last is None:

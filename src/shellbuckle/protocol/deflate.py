@@ -22,16 +22,25 @@ The init/step pair follows JAX MD: ``ctx, state = init(mesh, params, protocol)``
 ``state, record = step(ctx, state)``. A state is the step index and the positions only; the
 random stream of step ``k`` depends on ``(seed, k)`` alone, so a run resumed from its last
 stored step computes exactly what an uninterrupted run computes.
+
+Neither does a run depend on the machine's number of cores: ``init`` and ``step`` run NumPy's
+and SciPy's BLAS on one thread (a threaded dot product sums in another order: the main job's
+energies differed in the 15th digit with two OpenBLAS threads from step 1 on, and after
+buckling such differences choose another trajectory), and PARDISO, which may use several
+threads (``init(..., threads=)``), gives the same bits on any number of them
+(:mod:`shellbuckle.solve.linear`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from ..energies.hinge import dihedral_angles
 from ..energies.total import BENDING_KINDS, ShellEnergy
@@ -40,7 +49,7 @@ from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..solve import minimize
-from ..solve.linear import make_solver
+from ..solve.linear import check_threads, make_solver
 from ..solve.newton import ABANDONED, pinned_dofs
 from ..solve.pressure import minimize_at_pressure
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
@@ -48,6 +57,23 @@ from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_ed
 from .schedule import PAPER_DV, check_schedule, linear_schedule
 
 log = logging.getLogger(__name__)
+
+
+
+@functools.lru_cache(maxsize=1)
+def _blas_controller() -> ThreadpoolController:
+    return ThreadpoolController()
+
+
+def one_blas_thread(function):
+    """Run ``function`` with NumPy's and SciPy's BLAS on one thread (restored afterwards), so
+    that its floating-point results do not depend on the number of cores."""
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        with _blas_controller().limit(limits=1, user_api="blas"):
+            return function(*args, **kwargs)
+    return wrapper
+
 
 METHODS = ("newton", "alternate", "cg", "gd")
 CONTROLS = ("volume", "pressure", "gamma", "c0")
@@ -223,12 +249,17 @@ class Context:
     the reference mesh, :func:`~shellbuckle.solve.newton.pinned_dofs`)."""
 
 
-def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
+@one_blas_thread
+def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int | None = None):
     """Build the run context and the step-0 state (the initial mesh ``mesh.X``).
 
     The stretching rest state is the initial mesh, or ``form_factors`` (Surface Evolver's
-    per-face rest metrics) when given; ``V0`` is the volume of the initial mesh.
+    per-face rest metrics) when given; ``V0`` is the volume of the initial mesh. ``threads``:
+    the sparse factorization's threads (default
+    :func:`~shellbuckle.solve.linear.default_threads`); the results do not depend on it.
     """
+    if threads is not None:
+        threads = check_threads(threads)
     c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
     energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0,
                                form_factors=form_factors)
@@ -238,7 +269,8 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None):
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(), c0=c0,
+                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(threads=threads),
+                  c0=c0,
                   pinned=pinned_dofs(mesh.X))
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
@@ -356,6 +388,7 @@ def only_local(checker: ContactChecker, contact, rings: int = FOLD_RINGS) -> boo
         (checker.face_distance(pairs[:, 0], pairs[:, 1], rings) <= rings).all())
 
 
+@one_blas_thread
 def step(ctx: Context, state: State):
     """One step (a volume, pressure, gamma or c0 increment): jiggle, minimize, c0 cycle,
     measure. Returns ``(state, record)``; a parameter path's record also has ``gamma``."""
