@@ -15,9 +15,10 @@ from shellbuckle.energies.total import ShellEnergy
 from shellbuckle.energies.volume import Volume
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
-from shellbuckle.solve import minimize, newton
+from shellbuckle.solve import make_solver, minimize, newton
 from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
-from shellbuckle.solve.newton import KKTAssembler, pinned_dofs, remove_rigid, rigid_modes
+from shellbuckle.solve.newton import (KKTAssembler, _fixes_gauge, pinned_dofs, remove_rigid,
+                                     rigid_modes)
 from test_solve_energies import spring_shell
 
 
@@ -377,3 +378,70 @@ def test_fused_value_and_gradient_are_the_separate_ones(bending):
     h = 1e-6
     fd = (energy.value(X + h * d) - energy.value(X - h * d)) / (2 * h)
     assert float(np.sum(g * d)) == pytest.approx(fd, rel=1e-6)
+
+
+class _CountingSolver:
+    """A linear solver that counts its factorizations (and passes everything on)."""
+
+    def __init__(self):
+        self.inner, self.n_factor = make_solver(), 0
+
+    def factor(self, A, upper=False, approximate=False):
+        self.n_factor += 1
+        return self.inner.factor(A, upper=upper, approximate=approximate)
+
+    def solve(self, b):
+        return self.inner.solve(b)
+
+    def inertia(self):
+        return self.inner.inertia()
+
+
+def _c0_cycle_problem():
+    # the protocol's c0 cycle on a small dented shell: a minimum at c0 = 2/R, then c0 -> 0
+    mesh, energy, volume, V0 = shell(4, 1000)
+    X0 = 0.9 ** (1 / 3) * mesh.X
+    X0 = X0 - 0.05 * np.exp(-20 * ((X0[:, 2:] - 0.97) ** 2)) * X0
+    solver = _CountingSolver()
+    first = newton(energy, volume, X0, 0.9 * V0, solver=solver, pinned=pinned_dofs(mesh.X))
+    assert first.success and first.factorization is not None
+    return mesh, energy.with_c0(0.0), volume, 0.9 * V0, solver, first
+
+
+def test_warm_start_reaches_the_cold_minimum_with_the_held_factorization():
+    # oracles: the cold minimization from the same point (relaxation + Newton), KKT
+    # conditions, and the dense inertia; the warm one starts with quasi-Newton steps on the
+    # factorization the solver still holds from the first minimization
+    mesh, flat, volume, V, solver, first = _c0_cycle_problem()
+    options = dict(solver=solver, pinned=pinned_dofs(mesh.X), precondition_at=first.x)
+    n0 = solver.n_factor
+    warm = newton(flat, volume, first.x, V, warm_start=first.factorization, history=True,
+                  **options)
+    n_warm = solver.n_factor - n0
+    cold = newton(flat, volume, first.x, V, history=True, **options)
+    n_cold = solver.n_factor - n0 - n_warm
+    assert warm.success and cold.success and warm.inertia == 0
+    assert_kkt(flat, volume, warm, V)
+    assert tangent_inertia_dense(flat, volume, warm.x) == 0
+    assert warm.fun == pytest.approx(cold.fun, rel=1e-12)
+    assert warm.pressure == pytest.approx(cold.pressure, rel=1e-8)
+    assert np.abs(warm.x - cold.x).max() <= 1e-6
+    assert warm.history[0]["step"] == "quasi-newton" and cold.history[0]["step"] == "relax"
+    assert n_warm < n_cold
+
+
+def test_a_stale_warm_start_is_ignored():
+    # once the solver has factored another matrix the token no longer describes it: the
+    # minimization must then be exactly the cold one
+    mesh, flat, volume, V, solver, first = _c0_cycle_problem()
+    options = dict(solver=solver, pinned=pinned_dofs(mesh.X), precondition_at=first.x)
+    cold = newton(flat, volume, first.x, V, **options)  # factors: first's token is stale
+    again = newton(flat, volume, first.x, V, warm_start=first.factorization, **options)
+    assert np.array_equal(again.x, cold.x) and again.nit == cold.nit
+    # nor is a token used with another gauge (another KKT pattern)
+    i, j, k = np.argmax(first.x, axis=0)  # the tangent dofs at the three extreme vertices
+    other = np.sort([3 * i + 1, 3 * i + 2, 3 * j, 3 * j + 2, 3 * k, 3 * k + 1])
+    assert _fixes_gauge(first.x, other) and not np.array_equal(other, pinned_dofs(mesh.X))
+    res = newton(flat, volume, first.x, V, warm_start=cold.factorization, solver=solver,
+                 pinned=other, precondition_at=first.x, history=True)
+    assert res.history[0]["step"] == "relax"

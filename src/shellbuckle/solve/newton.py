@@ -104,6 +104,21 @@ paper's mesh (gamma = 2333, steps 2, 6 and 10 of the protocol, from the same sta
 minimization of a step then takes 3-8 factorizations instead of 30-60 and 2-3 s instead of
 6-9 s, and ends at the same minimum (energies equal to ten digits).
 
+Warm start
+----------
+A minimization that starts where another one on the same mesh ended, at slightly different
+parameters (the protocol's zero-spontaneous-curvature cycle: ``c0 -> 0`` from a minimum at
+``c0 = 2/R``, then back), can take its first steps with the factorization the linear solver
+still holds from the previous minimization (``warm_start=result.factorization``): quasi-Newton
+steps whose initial inverse Hessian is that factorization, as after a Newton step, instead of
+the preconditioned relaxation (which factors once) and a first Newton step (which factors
+again). The token is valid while nothing else has been factored by the solver and the rigid
+gauge (so the KKT pattern) is the same; else it is ignored. A warm start never certifies the
+inertia: the convergence test still needs an unshifted factorization near the final point. On
+the paper's mesh (gamma = 2333, six steps from 4 to 44, from the same states) the c0 cycle
+then takes 89 double-precision factorizations instead of 113 and no single-precision one
+instead of 12, with the same minima (energies equal to 12 digits).
+
 Convergence
 -----------
 Stop when ``|r| <= tol_grad |grad E| + atol_grad`` (``|grad E|`` is the size of the forces
@@ -163,6 +178,38 @@ them), 1035 iterations and 200 factorizations without converging; with pins chos
 the point, 29 Newton iterations to a minimum 8e-5 kappa lower."""
 ABANDONED = "abandoned"
 """Start of the message of a minimization stopped by its ``abandon`` test."""
+
+
+class _Factorization:
+    """What a linear solver holds after a factorization by :class:`_Newton` (see "Warm
+    start"): the solver, the KKT assembler (free dofs and pattern) and whether the
+    factorization was approximate (single precision, a preconditioner only)."""
+
+    __slots__ = ("solver", "kkt", "approximate")
+
+    def __init__(self, solver, kkt, approximate: bool):
+        self.solver, self.kkt, self.approximate = solver, kkt, approximate
+
+
+_HELD: dict = {}
+"""``id(solver) -> _Factorization``: the last factorization each solver was given by Newton's
+method (the token keeps its solver alive, so the id is not reused while it is here)."""
+_HELD_SIZE = 16
+
+
+def _hold(token: _Factorization) -> None:
+    _HELD.pop(id(token.solver), None)
+    _HELD[id(token.solver)] = token
+    while len(_HELD) > _HELD_SIZE:
+        _HELD.pop(next(iter(_HELD)))
+
+
+def _warm_ok(token, nt) -> bool:
+    """Whether ``token`` (a ``result.factorization``) is what ``nt``'s solver holds now, for
+    the same gauge, in double precision."""
+    return (isinstance(token, _Factorization) and not token.approximate
+            and token.solver is nt.linsolver and token.kkt is nt.kkt
+            and _HELD.get(id(nt.linsolver)) is token)
 
 
 def rigid_modes(X: np.ndarray) -> np.ndarray:
@@ -358,7 +405,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            inertia_step: float = 1e-4, max_quasi: int = 10, memory: int = 8, pinned=None,
            seed: int = 0, history: bool = False, precondition_at: np.ndarray | None = None,
            relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
-           abandon=None) -> MinimizeResult:
+           abandon=None, warm_start=None) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
     Parameters
@@ -426,6 +473,11 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         (``success = False``, message ``"abandoned: <reason>"``). The deflation protocol
         gives up at once on a triangle folded onto its neighbour, where the energy is not
         differentiable and no minimizer makes progress (it jiggles again instead).
+    warm_start : object, optional
+        ``result.factorization`` of the minimization that ended at ``X0`` (same mesh, solver
+        and gauge, other parameters): the first steps reuse the factorization the solver still
+        holds, and the relaxation of ``precondition_at`` is skipped (module docstring, "Warm
+        start"). Ignored when the solver has been given another matrix since.
 
     Returns
     -------
@@ -446,16 +498,18 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     want_inertia = compute_inertia or escape_saddles
     E = nt.value(X)
     dE, mu, nit, records = None, 0.0, 0, []
-    if precondition_at is not None:
+    warm = _warm_ok(warm_start, nt)
+    if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, relax_shift, relax_tol,
                                     max_iter // 2, max_step, tol_grad, atol_grad, history)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
-    pairs, n_quasi, quasi_ok, previous, r_history = [], 0, False, None, []
+    # with a warm start the held factorization serves the first quasi-Newton steps
+    pairs, n_quasi, quasi_ok, previous, r_history = [], 0, warm, None, []
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
-    ask = abandon is not None and precondition_at is not None  # ask ``abandon`` at this point
+    ask = abandon is not None and precondition_at is not None and not warm  # ask at this point
     while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
@@ -564,10 +618,13 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     volume_error = abs(volume.value(X) - V_target) / V_target
     log.info("newton: %s after %d iterations, E=%.15g, |r|=%.3e, pressure=%.9g, inertia=%s",
              message, nit, E, r_norm, -lam, inertia)
+    held = _HELD.get(id(nt.linsolver))
+    held = held if _warm_ok(held, nt) else None
     return MinimizeResult(x=X, fun=E, grad_norm=r_norm, nit=nit, success=success,
                           message=message, pressure=-lam, volume_error=volume_error,
                           inertia=inertia, method="newton",
-                          history=records if history else None, timings=dict(nt.clock.t))
+                          history=records if history else None, timings=dict(nt.clock.t),
+                          factorization=held)
 
 
 def _relax(nt, X, E, X_ref, shift, tol, max_it, max_step, tol_grad, atol_grad, history):
@@ -773,6 +830,9 @@ class _Newton:
         for a preconditioner only."""
         A = self.kkt.matrix(self._data, mu)
         approximate = approximate and self._approximate_ok
+        # a failed factorization leaves nothing usable: mark it approximate (never warm)
+        token = _Factorization(self.linsolver, self.kkt, True)
+        _hold(token)
         with self.clock("factorization"):
             try:
                 if approximate:
@@ -781,6 +841,7 @@ class _Newton:
                     self.linsolver.factor(A, upper=True)
             except SingularFactorError:
                 return False, None
+        token.approximate = approximate
         signs = self.linsolver.inertia()
         return True, None if signs is None else signs[1] - 1
 

@@ -50,6 +50,11 @@ class MinimizeResult:
     timings : dict
         Wall time in seconds spent in the main parts (``assembly``, ``factorization``,
         ``solve``, ``line_search``, ``total``).
+    factorization : object or None
+        Newton's method only: a token for the factorization its linear solver holds at the
+        end (of the tangent KKT matrix at a point of the last iterations), which the next
+        minimization on the same mesh and gauge may use to start (``newton(...,
+        warm_start=result.factorization)``); ``None`` if there is none.
     """
 
     x: np.ndarray
@@ -64,6 +69,7 @@ class MinimizeResult:
     method: str
     history: list | None = None
     timings: dict = field(default_factory=dict)
+    factorization: object | None = field(default=None, repr=False)
 
     @property
     def lam(self) -> float:
