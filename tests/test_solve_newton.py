@@ -445,3 +445,19 @@ def test_a_stale_warm_start_is_ignored():
     res = newton(flat, volume, first.x, V, warm_start=cold.factorization, solver=solver,
                  pinned=other, precondition_at=first.x, history=True)
     assert res.history[0]["step"] == "relax"
+
+
+def test_a_warm_start_token_keeps_no_solver_alive():
+    # sweeps run many runs in one worker: a kept result must not hold on to its run's
+    # factorization (tens of MB each)
+    import gc
+    import weakref
+
+    mesh, energy, volume, V0 = shell(3, 1000)
+    solver = make_solver()
+    res = newton(energy, volume, 0.95 ** (1 / 3) * mesh.X, 0.95 * V0, solver=solver)
+    assert res.factorization is not None
+    alive = weakref.ref(solver)
+    del solver
+    gc.collect()
+    assert alive() is None

@@ -142,6 +142,7 @@ from __future__ import annotations
 import inspect
 import logging
 import time
+import weakref
 from collections import defaultdict
 from contextlib import contextmanager
 
@@ -180,26 +181,36 @@ ABANDONED = "abandoned"
 """Start of the message of a minimization stopped by its ``abandon`` test."""
 
 
+def _ref(obj):
+    """A weak reference to ``obj`` (a strong one, as a callable, if it takes none)."""
+    try:
+        return weakref.ref(obj)
+    except TypeError:
+        return lambda: obj
+
+
 class _Factorization:
     """What a linear solver holds after a factorization by :class:`_Newton` (see "Warm
-    start"): the solver, the KKT assembler (free dofs and pattern) and whether the
-    factorization was approximate (single precision, a preconditioner only)."""
+    start"): the solver and the KKT assembler (free dofs and pattern), weakly referenced so
+    that a token keeps neither alive, and whether the factorization was approximate (single
+    precision, a preconditioner only)."""
 
     __slots__ = ("solver", "kkt", "approximate")
 
     def __init__(self, solver, kkt, approximate: bool):
-        self.solver, self.kkt, self.approximate = solver, kkt, approximate
+        self.solver, self.kkt, self.approximate = _ref(solver), _ref(kkt), approximate
 
 
 _HELD: dict = {}
-"""``id(solver) -> _Factorization``: the last factorization each solver was given by Newton's
-method (the token keeps its solver alive, so the id is not reused while it is here)."""
-_HELD_SIZE = 16
+"""``id(solver) -> _Factorization``: the last factorization each recent solver was given by
+Newton's method (a token whose solver has died no longer matches any solver)."""
+_HELD_SIZE = 8
 
 
 def _hold(token: _Factorization) -> None:
-    _HELD.pop(id(token.solver), None)
-    _HELD[id(token.solver)] = token
+    key = id(token.solver())
+    _HELD.pop(key, None)
+    _HELD[key] = token
     while len(_HELD) > _HELD_SIZE:
         _HELD.pop(next(iter(_HELD)))
 
@@ -208,7 +219,7 @@ def _warm_ok(token, nt) -> bool:
     """Whether ``token`` (a ``result.factorization``) is what ``nt``'s solver holds now, for
     the same gauge, in double precision."""
     return (isinstance(token, _Factorization) and not token.approximate
-            and token.solver is nt.linsolver and token.kkt is nt.kkt
+            and token.solver() is nt.linsolver and token.kkt() is nt.kkt
             and _HELD.get(id(nt.linsolver)) is token)
 
 
