@@ -438,13 +438,24 @@ def test_a_stale_warm_start_is_ignored():
     cold = newton(flat, volume, first.x, V, **options)  # factors: first's token is stale
     again = newton(flat, volume, first.x, V, warm_start=first.factorization, **options)
     assert np.array_equal(again.x, cold.x) and again.nit == cold.nit
-    # nor is a token used with another gauge (another KKT pattern)
+    # a valid token brings its gauge: asked for another one, the minimization keeps the held
+    # factorization's pins (and so its KKT pattern) while they fix the rigid motions ...
     i, j, k = np.argmax(first.x, axis=0)  # the tangent dofs at the three extreme vertices
     other = np.sort([3 * i + 1, 3 * i + 2, 3 * j, 3 * j + 2, 3 * k, 3 * k + 1])
     assert _fixes_gauge(first.x, other) and not np.array_equal(other, pinned_dofs(mesh.X))
-    res = newton(flat, volume, first.x, V, warm_start=cold.factorization, solver=solver,
-                 pinned=other, precondition_at=first.x, history=True)
+    kept = newton(flat, volume, first.x, V, warm_start=again.factorization, solver=solver,
+                  pinned=other, precondition_at=first.x, history=True)
+    assert kept.history[0]["step"] == "quasi-newton"
+    assert kept.fun == pytest.approx(cold.fun, rel=1e-12)
+    # ... and a token whose pins do not fix them there (two whole vertices leave the rotation
+    # about their axis free) is not used with another gauge
+    token = kept.factorization
+    token.pinned = np.arange(6)
+    assert not _fixes_gauge(first.x, token.pinned)
+    res = newton(flat, volume, first.x, V, warm_start=token, solver=solver, pinned=other,
+                 precondition_at=first.x, history=True)
     assert res.history[0]["step"] == "relax"
+    assert res.fun == pytest.approx(cold.fun, rel=1e-12)
 
 
 def test_a_warm_start_token_keeps_no_solver_alive():
