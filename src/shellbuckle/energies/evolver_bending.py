@@ -49,6 +49,8 @@ Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvat
 
 from __future__ import annotations
 
+import copy
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,6 +119,17 @@ def _hess_area_directional(N, rho, nhat, v):
     return 0.5 * (cross + cross.transpose(0, 2, 1) + _contract_B(Pm) + NQN)
 
 
+def _check_c0(c0, n_vertices: int) -> np.ndarray:
+    """``c0`` as one finite value per vertex, ``(V,)``, or a ``ValueError``."""
+    c0 = np.asarray(c0, dtype=np.float64)
+    if c0.ndim == 0:
+        c0 = np.full(n_vertices, float(c0))
+    if c0.shape != (n_vertices,) or not np.isfinite(c0).all():
+        raise ValueError(f"c0 must be a finite number or a ({n_vertices},) array of finite "
+                         f"numbers")
+    return c0
+
+
 @dataclass(frozen=True, eq=False)
 class StarPerpBending:
     """Surface Evolver's ``star_perp_sq_mean_curvature`` in the package's bending convention.
@@ -161,11 +174,7 @@ class StarPerpBending:
             raise ValueError(f"faces must be a non-empty (F, 3) integer array, got shape {faces.shape}")
         if not np.isfinite(self.kappa):
             raise ValueError(f"kappa must be a finite number, got {self.kappa!r}")
-        c0 = np.asarray(self.c0, dtype=np.float64)
-        if c0.ndim == 0:
-            c0 = np.full(V, float(c0))
-        if c0.shape != (V,) or not np.isfinite(c0).all():
-            raise ValueError(f"c0 must be a finite number or a ({V},) array of finite numbers")
+        c0 = _check_c0(self.c0, V)
         weight = np.ones(V)
         if self.vertices is not None:
             chosen = np.asarray(self.vertices, dtype=np.int64)
@@ -180,6 +189,18 @@ class StarPerpBending:
         object.__setattr__(self, "_weight", weight)
         object.__setattr__(self, "_face_asm", ElementAssembler(faces, V))
         object.__setattr__(self, "_pattern", None)  # built on the first hessian() call
+
+    def with_c0(self, c0) -> "StarPerpBending":
+        """The same term with spontaneous curvature ``c0`` (one value or one per vertex). It
+        shares the topology tables (the face assembler and the Hessian's sparsity pattern,
+        built here if it was not yet), so the c0 cycle does not rebuild them at every step."""
+        c0_vertex = _check_c0(c0, self.n_vertices)
+        if self._pattern is None:
+            object.__setattr__(self, "_pattern", self._hessian_pattern(self.faces, self.n_vertices))
+        new = copy.copy(self)
+        object.__setattr__(new, "c0", c0)
+        object.__setattr__(new, "_h0", 0.5 * c0_vertex)
+        return new
 
     @classmethod
     def from_evolver(cls, faces, n_vertices, modulus: float, h_zero=0.0, vertices=None):
