@@ -142,6 +142,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import threading
 import time
 import weakref
 from collections import defaultdict
@@ -209,12 +210,17 @@ Newton's method (a token whose solver has died no longer matches any solver)."""
 _HELD_SIZE = 8
 
 
+_CACHE_LOCK = threading.Lock()
+"""Guards ``_HELD`` and ``_KKT_CACHE``: a sweep's worker runs several runs in threads."""
+
+
 def _hold(token: _Factorization) -> None:
     key = id(token.solver())
-    _HELD.pop(key, None)
-    _HELD[key] = token
-    while len(_HELD) > _HELD_SIZE:
-        _HELD.pop(next(iter(_HELD)))
+    with _CACHE_LOCK:
+        _HELD.pop(key, None)
+        _HELD[key] = token
+        while len(_HELD) > _HELD_SIZE:
+            _HELD.pop(next(iter(_HELD)))
 
 
 def _warm_ok(token, nt) -> bool:
@@ -360,10 +366,13 @@ def kkt_assembler(free: np.ndarray, n_dofs: int) -> KKTAssembler:
     protocol's three per volume step) so that neither it nor the linear solver redoes its
     pattern analysis; a few recent ones are kept."""
     key = (int(n_dofs), np.asarray(free).tobytes())
-    kkt = _KKT_CACHE.pop(key, None) or KKTAssembler(free, n_dofs)
-    _KKT_CACHE[key] = kkt
-    while len(_KKT_CACHE) > _KKT_CACHE_SIZE:
-        _KKT_CACHE.pop(next(iter(_KKT_CACHE)))
+    with _CACHE_LOCK:
+        kkt = _KKT_CACHE.pop(key, None)
+    kkt = kkt or KKTAssembler(free, n_dofs)
+    with _CACHE_LOCK:
+        _KKT_CACHE[key] = kkt
+        while len(_KKT_CACHE) > _KKT_CACHE_SIZE:
+            _KKT_CACHE.pop(next(iter(_KKT_CACHE)))
     return kkt
 
 
