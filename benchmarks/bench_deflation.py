@@ -44,6 +44,7 @@ from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol  # noqa: E402
+from shellbuckle.solve.linear import CountingSolver  # noqa: E402
 
 PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
 TIMING_KEYS = ("assembly", "factorization", "solve", "line_search")
@@ -67,23 +68,6 @@ class _Recorder:
         return result
 
 
-class _CountingSolver:
-    """The run's linear solver, counting factorizations."""
-
-    def __init__(self, inner):
-        self.inner, self.n_factor = inner, 0
-
-    def factor(self, A, upper=False, approximate=False):
-        self.n_factor += 1
-        return self.inner.factor(A, upper=upper, approximate=approximate)
-
-    def solve(self, b):
-        return self.inner.solve(b)
-
-    def inertia(self):
-        return self.inner.inertia()
-
-
 def _threads_text(threads: int) -> str:
     if threads == 1:
         return "one thread"
@@ -99,7 +83,7 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         ctx, state = protocol_mod.init(mesh, params, protocol, threads=threads)
-        ctx = dataclasses.replace(ctx, solver=_CountingSolver(ctx.solver))
+        ctx = dataclasses.replace(ctx, solver=CountingSolver(ctx.solver))
         t_init = time.perf_counter() - t0
         records = []
         while state.stopped is None:

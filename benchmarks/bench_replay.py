@@ -43,35 +43,17 @@ from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol, State  # noqa: E402
+from shellbuckle.solve.linear import CountingSolver  # noqa: E402
 from shellbuckle.store.run import source_commit  # noqa: E402
 
 PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
-
-
-class _CountingSolver:
-    """The run's linear solver, counting factorizations (by precision) and solves."""
-
-    def __init__(self, inner):
-        self.inner = inner
-        self.counts = dict(single=0, double=0, solve=0)
-
-    def factor(self, A, upper=False, approximate=False):
-        self.counts["single" if approximate else "double"] += 1
-        return self.inner.factor(A, upper=upper, approximate=approximate)
-
-    def solve(self, b):
-        self.counts["solve"] += 1
-        return self.inner.solve(b)
-
-    def inertia(self):
-        return self.inner.inertia()
 
 
 def _context(mesh, gamma: float, seed: int):
     protocol = Protocol.paper(seed=seed)
     ctx, state = protocol_mod.init(mesh, ShellParameters.from_gamma(gamma, nu=1.0 / 3.0),
                                    protocol, threads=1)
-    return dataclasses.replace(ctx, solver=_CountingSolver(ctx.solver)), state
+    return dataclasses.replace(ctx, solver=CountingSolver(ctx.solver)), state
 
 
 def trajectory(path: Path, mesh, gamma: float, seed: int) -> dict:

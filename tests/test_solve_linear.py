@@ -155,3 +155,21 @@ def test_threads_are_checked_and_default_to_the_environment(monkeypatch):
     assert 1 <= default_threads() <= (os.cpu_count() or 1)
     if _load_mkl() is not None:
         assert make_solver("pardiso", threads=2).n_threads == 2
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_counting_solver_counts_and_passes_everything_on(backend):
+    # oracle: the wrapped solver's own answers and the dense inertia
+    from shellbuckle.solve.linear import CountingSolver
+
+    A = _random_symmetric(30, 7)
+    eig = np.linalg.eigvalsh(A.toarray())
+    b = np.random.default_rng(7).standard_normal(30)
+    counting = CountingSolver(backend())
+    counting.factor(A)
+    x = counting.solve(b)
+    counting.solve(2 * b)
+    counting.factor(A, approximate=True)
+    assert counting.counts == dict(double=1, single=1, solve=2) and counting.n_factor == 2
+    assert counting.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
+    np.testing.assert_allclose(A @ x, b, atol=1e-10 * np.abs(b).max())

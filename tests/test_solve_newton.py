@@ -16,6 +16,7 @@ from shellbuckle.energies.volume import Volume
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.solve import make_solver, minimize, newton
+from shellbuckle.solve.linear import CountingSolver
 from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
 from shellbuckle.solve.newton import (KKTAssembler, _fixes_gauge, pinned_dofs, remove_rigid,
                                      rigid_modes)
@@ -380,29 +381,12 @@ def test_fused_value_and_gradient_are_the_separate_ones(bending):
     assert float(np.sum(g * d)) == pytest.approx(fd, rel=1e-6)
 
 
-class _CountingSolver:
-    """A linear solver that counts its factorizations (and passes everything on)."""
-
-    def __init__(self):
-        self.inner, self.n_factor = make_solver(), 0
-
-    def factor(self, A, upper=False, approximate=False):
-        self.n_factor += 1
-        return self.inner.factor(A, upper=upper, approximate=approximate)
-
-    def solve(self, b):
-        return self.inner.solve(b)
-
-    def inertia(self):
-        return self.inner.inertia()
-
-
 def _c0_cycle_problem():
     # the protocol's c0 cycle on a small dented shell: a minimum at c0 = 2/R, then c0 -> 0
     mesh, energy, volume, V0 = shell(4, 1000)
     X0 = 0.9 ** (1 / 3) * mesh.X
     X0 = X0 - 0.05 * np.exp(-20 * ((X0[:, 2:] - 0.97) ** 2)) * X0
-    solver = _CountingSolver()
+    solver = CountingSolver(make_solver())
     first = newton(energy, volume, X0, 0.9 * V0, solver=solver, pinned=pinned_dofs(mesh.X))
     assert first.success and first.factorization is not None
     return mesh, energy.with_c0(0.0), volume, 0.9 * V0, solver, first

@@ -356,6 +356,33 @@ class PardisoSolver:
         return self._active._signs
 
 
+class CountingSolver:
+    """A linear solver that counts its work and passes every call on to ``inner``:
+    ``counts["double"]`` factorizations, ``counts["single"]`` approximate ones
+    (``factor(..., approximate=True)``) and ``counts["solve"]`` solves. For measuring what a
+    minimization costs (benchmarks, tests)."""
+
+    def __init__(self, inner):
+        self.inner = make_solver(inner)
+        self.counts = dict(double=0, single=0, solve=0)
+
+    @property
+    def n_factor(self) -> int:
+        """Factorizations of either kind so far."""
+        return self.counts["double"] + self.counts["single"]
+
+    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
+        self.counts["single" if approximate else "double"] += 1
+        self.inner.factor(A, upper=upper, approximate=approximate)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        self.counts["solve"] += 1
+        return self.inner.solve(b)
+
+    def inertia(self):
+        return self.inner.inertia()
+
+
 _BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoSolver}
 
 
