@@ -117,7 +117,7 @@ has been factored by the solver, and the minimization keeps the token's gauge wh
 the rigid motions at the start (so the KKT pattern is the same); else it is ignored. A warm
 start never certifies the inertia: the convergence test still needs an unshifted
 factorization near the final point. Replaying the same steps of stored trajectories of the
-paper's protocol (``benchmarks/bench_replay.py``, every second step) costs 11-28 % less CPU
+paper's protocol (``benchmarks/bench_replay.py``, every second step) costs 13-20 % less CPU
 time (gamma = 271, 2333, 20995) and every step ends at the same minimum.
 
 Convergence
