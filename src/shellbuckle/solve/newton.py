@@ -211,7 +211,8 @@ _HELD_SIZE = 8
 
 
 _CACHE_LOCK = threading.Lock()
-"""Guards ``_HELD`` and ``_KKT_CACHE``: a sweep's worker runs several runs in threads."""
+"""Guards ``_HELD`` and ``_KKT_CACHE``: a Dask worker with several threads (other schedulers
+than the local cluster) runs several runs at once in one process."""
 
 
 def _hold(token: _Factorization) -> None:
