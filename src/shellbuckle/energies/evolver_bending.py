@@ -49,8 +49,6 @@ Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvat
 
 from __future__ import annotations
 
-import copy
-
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -119,17 +117,6 @@ def _hess_area_directional(N, rho, nhat, v):
     return 0.5 * (cross + cross.transpose(0, 2, 1) + _contract_B(Pm) + NQN)
 
 
-def _check_c0(c0, n_vertices: int) -> np.ndarray:
-    """``c0`` as one finite value per vertex, ``(V,)``, or a ``ValueError``."""
-    c0 = np.asarray(c0, dtype=np.float64)
-    if c0.ndim == 0:
-        c0 = np.full(n_vertices, float(c0))
-    if c0.shape != (n_vertices,) or not np.isfinite(c0).all():
-        raise ValueError(f"c0 must be a finite number or a ({n_vertices},) array of finite "
-                         f"numbers")
-    return c0
-
-
 @dataclass(frozen=True, eq=False)
 class StarPerpBending:
     """Surface Evolver's ``star_perp_sq_mean_curvature`` in the package's bending convention.
@@ -162,8 +149,9 @@ class StarPerpBending:
     kappa: float = 1.0
     c0: float | np.ndarray = 2.0
     vertices: np.ndarray | None = None
-    _face_asm: ElementAssembler = field(init=False, repr=False)
-    _pattern: dict | None = field(init=False, repr=False)
+    _tables: dict | None = field(default=None, repr=False)
+    """Topology tables (face assembler; Hessian pattern once built), shared by the copies that
+    ``dataclasses.replace`` makes (``with_c0`` in the c0 cycle), as ``Bending._plan`` is."""
     _weight: np.ndarray = field(init=False, repr=False)
     _h0: np.ndarray = field(init=False, repr=False)
 
@@ -174,7 +162,11 @@ class StarPerpBending:
             raise ValueError(f"faces must be a non-empty (F, 3) integer array, got shape {faces.shape}")
         if not np.isfinite(self.kappa):
             raise ValueError(f"kappa must be a finite number, got {self.kappa!r}")
-        c0 = _check_c0(self.c0, V)
+        c0 = np.asarray(self.c0, dtype=np.float64)
+        if c0.ndim == 0:
+            c0 = np.full(V, float(c0))
+        if c0.shape != (V,) or not np.isfinite(c0).all():
+            raise ValueError(f"c0 must be a finite number or a ({V},) array of finite numbers")
         weight = np.ones(V)
         if self.vertices is not None:
             chosen = np.asarray(self.vertices, dtype=np.int64)
@@ -187,20 +179,8 @@ class StarPerpBending:
         object.__setattr__(self, "n_vertices", V)
         object.__setattr__(self, "_h0", 0.5 * c0)
         object.__setattr__(self, "_weight", weight)
-        object.__setattr__(self, "_face_asm", ElementAssembler(faces, V))
-        object.__setattr__(self, "_pattern", None)  # built on the first hessian() call
-
-    def with_c0(self, c0) -> "StarPerpBending":
-        """The same term with spontaneous curvature ``c0`` (one value or one per vertex). It
-        shares the topology tables (the face assembler and the Hessian's sparsity pattern,
-        built here if it was not yet), so the c0 cycle does not rebuild them at every step."""
-        c0_vertex = _check_c0(c0, self.n_vertices)
-        if self._pattern is None:
-            object.__setattr__(self, "_pattern", self._hessian_pattern(self.faces, self.n_vertices))
-        new = copy.copy(self)
-        object.__setattr__(new, "c0", c0)
-        object.__setattr__(new, "_h0", 0.5 * c0_vertex)
-        return new
+        if self._tables is None:  # the Hessian pattern is added on the first hessian() call
+            object.__setattr__(self, "_tables", {"face_asm": ElementAssembler(faces, V)})
 
     @classmethod
     def from_evolver(cls, faces, n_vertices, modulus: float, h_zero=0.0, vertices=None):
@@ -343,7 +323,7 @@ class StarPerpBending:
         hv = 0.5 * ((np.cross(Nv[:, None, :], e) - 4.0 * grad_a * ga_v[:, None, None])
                     / rho[:, None, None] + np.cross(nhat[:, None, :], ev))
         local = hv + 0.5 * np.cross(gM[:, None, :], e) + gS[:, None, None] * grad_a
-        return self._face_asm.gradient(local)
+        return self._tables["face_asm"].gradient(local)
 
     def hessian(self, X) -> sp.csr_matrix:
         (x, e, n, rho, nhat, grad_a), F, M, S = self._vertex_sums(X)
@@ -356,9 +336,9 @@ class StarPerpBending:
         local_J[:, :, 0:3, :] = hess_a.reshape(-1, 3, 3, 9)
         local_J[:, :, 3:6, :] = 0.5 * N[:, None]
         local_J[:, :, 6, :] = grad_a[:, None, :]
-        if self._pattern is None:
-            object.__setattr__(self, "_pattern", self._hessian_pattern(self.faces, self.n_vertices))
-        pat = self._pattern
+        pat = self._tables.get("hessian")
+        if pat is None:
+            pat = self._tables["hessian"] = self._hessian_pattern(self.faces, self.n_vertices)
         jdata = np.bincount(pat["jslot"], weights=local_J.ravel(), minlength=pat["jnnz"])
         parts = []
         for verts, w, gather in pat["groups"]:
