@@ -257,6 +257,68 @@ def test_preconditioned_relaxation_reaches_the_newton_minimum(sigma):
     assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(relax, relax[1:]))
 
 
+def _jiggled_shell(sigma=0.3, seed=3):
+    mesh, energy, volume, V0 = shell(4, 1000)
+    shrunk = 0.95 ** (1 / 3) * mesh.X
+    edge = np.linalg.norm(mesh.X[mesh.faces[:, 0]] - mesh.X[mesh.faces[:, 1]], axis=1).mean()
+    X0 = shrunk + sigma * edge * np.random.default_rng(seed).standard_normal(mesh.X.shape)
+    return mesh, energy, volume, 0.95 * V0, shrunk, X0
+
+
+def test_rough_relaxation_stage_takes_full_steps_sooner():
+    # oracles: the relaxation without the rough stage, KKT conditions and the dense inertia.
+    # The rough stage (a larger shift first) damps the soft modes that made the first
+    # directions far too long, so fewer steps are cut by the line search; it ends with one
+    # more (single-precision) factorization at the small shift, and the minimum is the same
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell()
+    runs = {}
+    for rough in (0.0, 1e-1):
+        solver = CountingSolver(make_solver())
+        res = newton(energy, volume, X0, V, precondition_at=shrunk, history=True, solver=solver,
+                     relax_rough_shift=rough, max_iter=300)
+        relax = [h for h in res.history if h["step"] == "relax"]
+        runs[rough] = (res, relax, solver.counts["single"])
+    (plain, relax_plain, single_plain), (rough, relax_rough, single_rough) = runs.values()
+    assert plain.success and rough.success and rough.inertia == 0
+    assert_kkt(energy, volume, rough, V)
+    assert tangent_inertia_dense(energy, volume, rough.x) == 0
+    assert rough.fun == pytest.approx(plain.fun, rel=1e-10)
+    assert rough.pressure == pytest.approx(plain.pressure, rel=1e-7)
+    cut = [sum(h["alpha"] < 1.0 for h in relax) for relax in (relax_plain, relax_rough)]
+    assert cut[1] < cut[0]
+    assert single_rough == single_plain + 1
+    energies = [h["energy"] for h in relax_rough]
+    assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(energies, energies[1:]))
+
+
+def test_single_precision_steps_reach_the_double_precision_minimum():
+    # oracles: the same minimization with every factorization in double precision, KKT
+    # conditions and the dense inertia; the single-precision Newton steps never report an
+    # inertia, and the inertia that certifies the minimum comes from a double factorization
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell()
+    runs = []
+    for single in (False, True):
+        solver = CountingSolver(make_solver())
+        res = newton(energy, volume, X0, V, history=True, solver=solver, max_iter=300,
+                     single_precision_steps=single)
+        runs.append((res, dict(solver.counts)))
+    (double, counts_double), (mixed, counts_mixed) = runs
+    assert double.success and mixed.success and mixed.inertia == 0
+    assert_kkt(energy, volume, mixed, V)
+    assert tangent_inertia_dense(energy, volume, mixed.x) == 0
+    assert mixed.fun == pytest.approx(double.fun, rel=1e-10)
+    assert mixed.pressure == pytest.approx(double.pressure, rel=1e-7)
+    assert counts_double["single"] == 0 and counts_mixed["single"] >= 3
+    assert 1 <= counts_mixed["double"] < counts_double["double"]
+    # (every Newton step of this problem is taken at an unconverged point)
+    assert any(h["inertia"] is not None for h in double.history if h["step"] == "newton")
+    assert all(h["inertia"] is None for h in mixed.history if h["step"] == "newton")
+    # without saddle escape (a search for any stationary point) every factorization is double
+    solver = CountingSolver(make_solver())
+    newton(energy, volume, X0, V, solver=solver, escape_saddles=False, max_iter=300)
+    assert solver.counts["single"] == 0
+
+
 def test_kkt_pattern_does_not_depend_on_values():
     # on the exact reference icosphere some stretching and bending entries cancel; the
     # solver's pattern (and so its ordering and round-off) must be the same as elsewhere

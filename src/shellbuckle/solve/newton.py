@@ -104,6 +104,39 @@ paper's mesh (gamma = 2333, steps 2, 6 and 10 of the protocol, from the same sta
 minimization of a step then takes 3-8 factorizations instead of 30-60 and 2-3 s instead of
 6-9 s, and ends at the same minimum (energies equal to ten digits).
 
+The relaxation starts in a rough stage with a larger shift, ``1e-1 mean|diag K|``
+(``relax_rough_shift``), and factors again with ``1e-3`` once three consecutive steps were
+taken in full (or the energy test above holds). Right after the jiggle the forces are huge
+(``|r|`` ~ 1e5-1e6 on the paper's mesh) and their small components along the soft modes,
+divided by the small shift, made the first directions 10-60 mean edge lengths long at the
+median vertex; the line search cut them to a few percent (the largest vertex move at the
+0.2 R step cap), so the stiff roughness of the jiggle, which wants the full step, fell by
+only a few percent per step. In the wrinkled regime (gamma = 20995) every one of the 100
+relaxation steps allowed was cut to 1-14 % and Newton's method started about 15 kappa above
+the minimum with ~20 negative eigenvalues. With the larger shift the soft components are
+damped at first, the steps are taken in full after 5-20 of them, and the relaxation goes on
+with the small shift from a smooth shell. Replaying stored trajectories
+(``benchmarks/bench_replay.py --every 3``): gamma = 20995 33 % less CPU time, 2333 8 %, 271
+unchanged, one more single-precision factorization per minimization. In the wrinkled regime
+the minimum reached is then another one of the many nearly degenerate wrinkle patterns
+(energies within 0.2 % of the stored ones, above or below); at gamma = 2333 every replayed
+step ends at the stored minimum.
+
+Single-precision steps
+----------------------
+The Newton steps of a point whose gradient has not converged (and the shift search there)
+are factored in single precision where the solver offers it (``single_precision_steps``, with
+``escape_saddles``: its round-off breaks the symmetry of a saddle, as a jiggle does;
+PARDISO, without iterative refinement: its solves are half as costly, ~3 against ~6 ms on
+the paper's mesh, and its factorization about 1.5 times cheaper). Such a step is an inexact
+Newton step (relative error about ``1e-7`` times the condition number along the soft
+modes), which the line search and the following quasi-Newton steps correct; its inertia is
+used only to choose the shift, never reported nor used to certify a minimum: the convergence
+test still needs an unshifted double-precision factorization near the final point (one
+more per minimization, where the last Newton step used to certify it). Replays as above: 10 %
+(gamma = 271 and 2333) and 7 % (20995) less CPU time with the same iterations; every replayed
+step at gamma = 271 and 2333 ends at the stored minimum.
+
 Warm start
 ----------
 A minimization that starts where another one on the same mesh ended, at slightly different
@@ -161,6 +194,10 @@ log = logging.getLogger(__name__)
 
 RELAX_SHIFT = 1e-3
 """Shift of the preconditioner of the relaxation, relative to ``mean|diag K|``."""
+RELAX_ROUGH_SHIFT = 1e-1
+"""Shift of the relaxation's first (rough) stage, relative to ``mean|diag K|``."""
+RELAX_ROUGH_FULL = 3
+"""Consecutive full steps after which the rough stage of the relaxation ends."""
 RELAX_TOL = 1e-5
 """The relaxation hands over to Newton's method when the energy falls by less than this,
 relative, over ``RELAX_WINDOW`` steps."""
@@ -428,6 +465,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            inertia_step: float = 1e-4, max_quasi: int = 10, memory: int = 8, pinned=None,
            seed: int = 0, history: bool = False, precondition_at: np.ndarray | None = None,
            relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
+           relax_rough_shift: float = RELAX_ROUGH_SHIFT, single_precision_steps: bool = True,
            abandon=None, warm_start=None) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
@@ -490,6 +528,16 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         See the module docstring ("Preconditioned relaxation").
     relax_shift, relax_tol : float
         Shift of the preconditioner and stopping test of that relaxation.
+    relax_rough_shift : float
+        Shift of the relaxation's first stage (module docstring, "Preconditioned
+        relaxation"), relative to ``mean|diag K|``; a value not above ``relax_shift`` skips
+        that stage.
+    single_precision_steps : bool
+        Factor the Newton steps of an unconverged point in single precision where the solver
+        offers it (module docstring, "Single-precision steps"); the inertia at a converged
+        point always comes from a double-precision factorization. Only with
+        ``escape_saddles`` (round-off of single precision moves an iterate off a saddle that
+        a search for any stationary point should reach).
     abandon : callable, optional
         ``abandon(X) -> str or None``, asked after the relaxation and after every Newton step
         at a point that has not converged: a reason stops the minimization there
@@ -526,8 +574,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     dE, mu, nit, records = None, 0.0, 0, []
     warm = _warm_ok(warm_start, nt)
     if precondition_at is not None and not warm:
-        X, E, nit, records = _relax(nt, X, E, precondition_at, relax_shift, relax_tol,
-                                    max_iter // 2, max_step, tol_grad, atol_grad, history)
+        X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
+                                    relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
+                                    history)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     # with a warm start the held factorization serves the first quasi-Newton steps
@@ -580,11 +629,17 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 hessian_fresh = True
                 if grad_ok or k == max_iter:  # Newton's step, and the inertia at the point
                     mu = 0.0
-            shift = nt.factor_positive(mu, escape_saddles)
+            # far from convergence a single-precision factorization serves the step (and the
+            # shift search); the inertia that certifies a minimum is always double precision
+            single = (single_precision_steps and escape_saddles and not grad_ok
+                      and k < max_iter and retries == 0)
+            shift = nt.factor_positive(mu, escape_saddles, approximate=single)
             if shift is None:
                 message = "could not make the tangent Hessian positive definite by a shift"
                 break
             mu, inertia, indefinite = shift
+            if single:
+                inertia = None  # never reported nor used to certify
             fact, pairs, n_quasi, quasi_ok = (X, mu, inertia), [], 0, True
             r_history = [(r_norm, E)]
             if converged and (not escape_saddles or inertia == 0 or not indefinite):
@@ -653,21 +708,33 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                           factorization=held)
 
 
-def _relax(nt, X, E, X_ref, shift, tol, max_it, max_step, tol_grad, atol_grad, history):
+def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, history):
     """Preconditioned relaxation (see the module docstring): L-BFGS steps whose initial
     inverse Hessian is the KKT solve with the Hessian at ``X_ref`` shifted by
     ``shift mean|diag K|`` (raised x4 until positive definite on the tangent space), from
     ``X`` until the energy falls by at most ``tol |E|`` over ``RELAX_WINDOW`` steps, the
-    projected gradient has converged, a step fails, or ``max_it`` steps.
+    projected gradient has converged, a step fails, or ``max_it`` steps. ``shifts = (rough,
+    shift)``: with ``rough > shift`` the steps first use that larger shift, until
+    ``RELAX_ROUGH_FULL`` consecutive steps are taken in full or the energy test above holds;
+    the matrix is then factored again with ``shift`` (the secant pairs are kept: they describe
+    the energy, not the preconditioner).
     Returns ``(X, E, steps, history records)``."""
     energy, volume, V_target = nt.energy, nt.volume, nt.V_target
+    rough, shift = shifts
+    rough = rough if rough > shift else None
     lam, r, gE, gV = nt.gradients(X_ref)
     nt.assemble(X_ref, lam, gV)
-    if nt.factor_positive(shift * nt.diag_scale, escape_saddles=True, approximate=True) is None:
+    if nt.factor_positive((rough or shift) * nt.diag_scale, escape_saddles=True,
+                          approximate=True) is None:
         return X, E, 0, []
     pairs, previous, energies, records = [], None, [E], []
-    n = 0
+    n, full = 0, 0
     while n < max_it:
+        if rough is not None and full >= RELAX_ROUGH_FULL:
+            rough, energies = None, [E]
+            if nt.factor_positive(shift * nt.diag_scale, escape_saddles=True,
+                                  approximate=True) is None:
+                break
         lam, r, gE, gV = nt.gradients(X)
         r_norm = float(np.linalg.norm(r))
         if r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad:
@@ -684,6 +751,7 @@ def _relax(nt, X, E, X_ref, shift, tol, max_it, max_step, tol_grad, atol_grad, h
         if found is None:
             break
         alpha, E_new, X_new = found
+        full = full + 1 if alpha == 1.0 else 0
         previous, X, E = (X, r), X_new, E_new
         n += 1
         energies.append(E)
@@ -691,7 +759,9 @@ def _relax(nt, X, E, X_ref, shift, tol, max_it, max_step, tol_grad, atol_grad, h
             records.append(dict(iteration=n - 1, energy=E, grad_norm=r_norm, lam=lam,
                                 inertia=None, mu=np.nan, step="relax", alpha=alpha, rho=np.nan))
         if len(energies) > RELAX_WINDOW and energies[-1 - RELAX_WINDOW] - E <= tol * abs(E):
-            break
+            if rough is None:
+                break
+            full = RELAX_ROUGH_FULL  # the rough stage has done what it can
     log.debug("preconditioned relaxation: %d steps, E=%.15g", n, E)
     return X, E, n, records
 
