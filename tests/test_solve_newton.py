@@ -291,6 +291,19 @@ def test_rough_relaxation_stage_takes_full_steps_sooner():
     assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(energies, energies[1:]))
 
 
+def test_rough_stage_is_skipped_for_a_start_far_from_the_relaxed_state():
+    # a perturbation larger than the edges (2 edge lengths rms per vertex) tangles the mesh;
+    # the relaxation then runs without the rough stage: exactly the run with it switched off
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell(sigma=2.0 / np.sqrt(3.0))
+    runs = [newton(energy, volume, X0, V, precondition_at=shrunk, max_iter=20,
+                   relax_rough_shift=rough) for rough in (1e-1, 0.0)]
+    assert np.array_equal(runs[0].x, runs[1].x) and runs[0].nit == runs[1].nit
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell()  # 0.5 edge lengths rms: used
+    runs = [newton(energy, volume, X0, V, precondition_at=shrunk, max_iter=20,
+                   relax_rough_shift=rough) for rough in (1e-1, 0.0)]
+    assert not np.array_equal(runs[0].x, runs[1].x)
+
+
 def test_single_precision_steps_reach_the_double_precision_minimum():
     # oracles: the same minimization with every factorization in double precision, KKT
     # conditions and the dense inertia; the single-precision Newton steps never report an

@@ -120,7 +120,13 @@ with the small shift from a smooth shell. Replaying stored trajectories
 unchanged, one more single-precision factorization per minimization. In the wrinkled regime
 the minimum reached is then another one of the many nearly degenerate wrinkle patterns
 (energies within 0.2 % of the stored ones, above or below); at gamma = 2333 every replayed
-step ends at the stored minimum.
+step ends at the stored minimum. The stage is skipped when the start lies more than 1.5 mean
+edge lengths (rms over the vertices) from the relaxed state (``RELAX_ROUGH_MAX_MOVE``): the
+protocol's jiggle is 0.76 edge lengths rms per vertex on the paper's mesh but 2.5 on a
+40k-vertex mesh (the same absolute amplitude), and there the rough stage's local full steps
+locked the tangled triangles in: every one of three steps folded (and was jiggled again),
+against none of two without the stage; capping its steps at 0.5 or 1 edge length did not
+help.
 
 Single-precision steps
 ----------------------
@@ -198,6 +204,10 @@ RELAX_ROUGH_SHIFT = 1e-1
 """Shift of the relaxation's first (rough) stage, relative to ``mean|diag K|``."""
 RELAX_ROUGH_FULL = 3
 """Consecutive full steps after which the rough stage of the relaxation ends."""
+RELAX_ROUGH_MAX_MOVE = 1.5
+"""The rough stage is skipped when the start lies farther from the relaxed state than this
+many mean edge lengths (root mean square over the vertices): a perturbation larger than the
+edges tangles the mesh, and the rough stage's local steps lock the tangles in."""
 RELAX_TOL = 1e-5
 """The relaxation hands over to Newton's method when the energy falls by less than this,
 relative, over ``RELAX_WINDOW`` steps."""
@@ -531,7 +541,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     relax_rough_shift : float
         Shift of the relaxation's first stage (module docstring, "Preconditioned
         relaxation"), relative to ``mean|diag K|``; a value not above ``relax_shift`` skips
-        that stage.
+        that stage, as does a start farther than ``RELAX_ROUGH_MAX_MOVE`` (1.5) mean edge
+        lengths (rms) from ``precondition_at``.
     single_precision_steps : bool
         Factor the Newton steps of an unconverged point in single precision where the solver
         offers it (module docstring, "Single-precision steps"); the inertia at a converged
@@ -574,6 +585,10 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     dE, mu, nit, records = None, 0.0, 0, []
     warm = _warm_ok(warm_start, nt)
     if precondition_at is not None and not warm:
+        move = float(np.sqrt(np.mean(np.sum((X - precondition_at) ** 2, axis=1))))
+        move /= mean_edge_length(np.asarray(volume.faces), precondition_at)
+        if move > RELAX_ROUGH_MAX_MOVE:
+            relax_rough_shift = 0.0
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
                                     history)
