@@ -593,10 +593,6 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     dE, mu, nit, records = None, 0.0, 0, []
     warm = _warm_ok(warm_start, nt)
     if precondition_at is not None and not warm:
-        move = float(np.sqrt(np.mean(np.sum((X - precondition_at) ** 2, axis=1))))
-        move /= mean_edge_length(np.asarray(volume.faces), precondition_at)
-        if move > RELAX_ROUGH_MAX_MOVE:
-            relax_rough_shift = 0.0
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
                                     history)
@@ -607,6 +603,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
+    single_ok = single_precision_steps and escape_saddles  # (module docstring)
     ask = abandon is not None and precondition_at is not None and not warm  # ask at this point
     while True:
         if need_gradient:
@@ -654,15 +651,12 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                     mu = 0.0
             # far from convergence a single-precision factorization serves the step (and the
             # shift search); the inertia that certifies a minimum is always double precision
-            single = (single_precision_steps and escape_saddles and not grad_ok
-                      and k < max_iter and retries == 0)
+            single = single_ok and not grad_ok and k < max_iter and retries == 0
             shift = nt.factor_positive(mu, escape_saddles, approximate=single)
             if shift is None:
                 message = "could not make the tangent Hessian positive definite by a shift"
                 break
             mu, inertia, indefinite = shift
-            if single:
-                inertia = None  # never reported nor used to certify
             fact, pairs, n_quasi, quasi_ok = (X, mu, inertia), [], 0, True
             r_history = [(r_norm, E)]
             if converged and (not escape_saddles or inertia == 0 or not indefinite):
@@ -700,8 +694,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             k += 1
             ask = abandon is not None
             newton_trail.append((E_new, r_norm))
-            if single_precision_steps and _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
-                single_precision_steps = False  # inexact steps along the softest modes
+            if single_ok and _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
+                single_ok = False  # inexact steps along the softest modes
             if not grad_ok and _jammed(newton_trail, tol_energy):
                 X, E = X_new, E_new
                 lam, r, gE, gV = nt.gradients(X)
@@ -742,11 +736,14 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     shift)``: with ``rough > shift`` the steps first use that larger shift, until
     ``RELAX_ROUGH_FULL`` consecutive steps are taken in full or the energy test above holds;
     the matrix is then factored again with ``shift`` (the secant pairs are kept: they describe
-    the energy, not the preconditioner).
+    the energy, not the preconditioner). No rough stage when ``X`` lies farther than
+    ``RELAX_ROUGH_MAX_MOVE`` mean edge lengths (rms) from ``X_ref``.
     Returns ``(X, E, steps, history records)``."""
     energy, volume, V_target = nt.energy, nt.volume, nt.V_target
     rough, shift = shifts
-    rough = rough if rough > shift else None
+    move = float(np.sqrt(np.mean(np.sum((X - X_ref) ** 2, axis=1))))
+    move /= mean_edge_length(np.asarray(volume.faces), X_ref)
+    rough = rough if rough > shift and move <= RELAX_ROUGH_MAX_MOVE else None
     lam, r, gE, gV = nt.gradients(X_ref)
     nt.assemble(X_ref, lam, gV)
     if nt.factor_positive((rough or shift) * nt.diag_scale, escape_saddles=True,
@@ -971,14 +968,17 @@ class _Newton:
         definite (and saddles are escaped), raise the shift (x4) until it is.
 
         Returns ``(mu, inertia, indefinite)``: ``inertia`` is the number of negative
-        eigenvalues of the tangent Hessian when ``mu = 0`` was factored (else ``None``) and
-        ``indefinite`` whether the tangent Hessian is known to have one; ``None`` if no
-        shift up to ``1e12 mean|diag K|`` works."""
+        eigenvalues of the tangent Hessian when ``mu = 0`` was factored in double precision
+        (else ``None``: an ``approximate`` factorization's inertia only guides the shift, it is
+        never reported nor used to certify a minimum) and ``indefinite`` whether the tangent
+        Hessian is known to have one; ``None`` if no shift up to ``1e12 mean|diag K|`` works."""
         ok, inertia = self.factor(mu, approximate)
         if mu > 0.0:
             inertia0, indefinite = None, not (ok and inertia in (0, None))
         else:
             inertia0, indefinite = inertia, bool(ok and inertia is not None and inertia > 0)
+        if approximate:
+            inertia0 = None
         if ok and (not escape_saddles or inertia in (0, None)):
             return mu, inertia0, indefinite
         mu = 4.0 * mu if mu > 0.0 else 1e-4 * self.diag_scale
