@@ -43,8 +43,10 @@ vertices up to two edges apart; the Hessian pattern is the union of the stars' s
 
 Implementation
 --------------
-NumPy only, vectorized over hinges, faces and stars (:mod:`.hinge` kernels). The 3x3 block
-pattern, the map from every element block to its pattern block and the CSR layout are built
+The value and the gradient come from one compiled loop over hinges and faces
+(:func:`.kernels.juelicher`, Numba), the Hessian from NumPy kernels vectorized over hinges,
+faces and stars (:mod:`.hinge`); the tests check each gradient against the other and against
+central differences. The 3x3 block pattern, the map from every element block to its pattern block and the CSR layout are built
 once (:class:`_Plan`). A Hessian evaluation writes only the upper local blocks of every hinge,
 face and star (diagonal blocks halved) into a work array, reduces them with one
 ``np.bincount`` per block entry into blocks ``U``, and returns ``U + U^T`` gathered straight
@@ -66,6 +68,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from . import hinge as hg
+from . import kernels
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,11 +124,14 @@ class Bending:
 
     # ------------------------------------------------------------------ per-vertex quantities
 
-    def _XT(self, X):
-        X = np.asarray(X, dtype=np.float64)
+    def _X(self, X):
+        X = np.ascontiguousarray(X, dtype=np.float64)
         if X.shape != (self.n_vertices, 3):
             raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
-        return np.ascontiguousarray(X.T)
+        return X
+
+    def _XT(self, X):
+        return np.ascontiguousarray(self._X(X).T)
 
     def _MA(self, XT):
         p = self._plan
@@ -150,7 +156,8 @@ class Bending:
     # ------------------------------------------------------------------ energy interface
 
     def value(self, X) -> float:
-        return float(self.vertex_energy(X).sum())
+        p = self._plan
+        return float(kernels.juelicher(self._X(X), p.HT, p.FT, self.kappa, self.c0, False)[0])
 
     def _weights(self, M, A):
         p, kappa, c0 = self._plan, self.kappa, self.c0
@@ -166,15 +173,11 @@ class Bending:
         return self.value_and_gradient(X)[1]
 
     def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
-        """Energy and gradient ``(V, 3)`` from one pass over the mesh."""
+        """Energy and gradient ``(V, 3)`` from one compiled pass over the mesh
+        (:func:`.kernels.juelicher`; the value is :meth:`value`'s, bit for bit)."""
         p = self._plan
-        XT = self._XT(X)
-        hk = hg.hinge_kernel(XT, p.HT, order=1)
-        fk = hg.face_kernel(XT, p.FT, order=1)
-        M, A = p.vertex_sums(hk.phi, fk.area)
-        H, w_hinge, w_face = self._weights(M, A)
-        value = 0.5 * self.kappa * float(((2.0 * H - self.c0) ** 2 * A).sum())
-        return value, p.gradient(w_hinge * hk.dphi, w_face * fk.grad)
+        value, G = kernels.juelicher(self._X(X), p.HT, p.FT, self.kappa, self.c0, True)
+        return float(value), G
 
     def hessian(self, X) -> sp.csr_matrix:
         """Exact (indefinite in general) Hessian, CSR ``(3V, 3V)``, vertex-major dofs."""
@@ -218,9 +221,6 @@ class _Plan:
         HT = np.ascontiguousarray(HT[:, np.argsort(rank[HT].min(axis=0), kind="stable")])
         FT = np.ascontiguousarray(FT[:, np.argsort(rank[FT].min(axis=0), kind="stable")])
         self.V, self.FT, self.HT = V, FT, HT
-        coord = np.arange(3)[:, None, None]
-        self.hinge_dofs = (3 * HT[None] + coord).ravel()  # (3, 4, E) gradient layout
-        self.face_dofs = (3 * FT[None] + coord).ravel()
         self._valence, self._rank = valence, rank
         self._lock = threading.Lock()
         self._local = threading.local()
@@ -354,13 +354,6 @@ class _Plan:
         A += np.bincount(self.FT[1], weights=area, minlength=V)
         A += np.bincount(self.FT[2], weights=area, minlength=V)
         return 0.25 * M, A / 3.0
-
-    def gradient(self, hinge_grad, face_grad):
-        """Sum hinge ``(3, 4, E)`` and face ``(3, 3, F)`` gradients into ``(V, 3)``."""
-        n = 3 * self.V
-        g = np.bincount(self.hinge_dofs, weights=hinge_grad.ravel(), minlength=n)
-        g += np.bincount(self.face_dofs, weights=face_grad.ravel(), minlength=n)
-        return g.reshape(self.V, 3)
 
     def star_gradients(self, dM_hinge, dA_face, H):
         """``g_i = grad M_i - H_i grad A_i`` on the star slots, ``(3, n_slots)``.

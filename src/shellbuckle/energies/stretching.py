@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .assembly import ElementAssembler
 
 # smallest accepted sin^2 of a rest-triangle angle: det(abar) / (abar_11 abar_22)
@@ -315,6 +316,8 @@ class Stretching:
         )
         k.update({"2D13": 2.0 * k["D13"], "2D23": 2.0 * k["D23"], "2D33": 2.0 * k["D33"]})
         k["hess_coef"] = _hessian_coefficients(k)
+        k["rest"] = np.stack([k[name] for name in ("a11", "a12", "a22", "D11", "D12", "D13",
+                                                   "D22", "D23", "D33")])
         object.__setattr__(self, "faces", faces)
         object.__setattr__(self, "n_vertices", int(self.n_vertices))
         object.__setattr__(self, "abar_inv", Q)
@@ -403,27 +406,26 @@ class Stretching:
         out[self._k["order"]] = self._face_energy(E, self._stress(E)) / self._k["area"]
         return out
 
+    def _X(self, X):
+        X = np.ascontiguousarray(X, dtype=np.float64)
+        if X.shape != (self.n_vertices, 3):
+            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
+        return X
+
     def value(self, X) -> float:
-        E = self._strain(*self._edges(X))
-        return float(self._face_energy(E, self._stress(E)).sum())
+        k = self._k
+        return float(kernels.stretching(self._X(X), k["f0"], k["f1"], k["f2"], k["rest"], False)[0])
 
     def gradient(self, X) -> np.ndarray:
         """Exact gradient, shape ``(V, 3)``."""
         return self.value_and_gradient(X)[1]
 
     def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
-        """Energy and its exact gradient ``(V, 3)`` from one pass over the faces."""
-        s, t = self._edges(X)
-        E = self._strain(s, t)
-        S11, S12, S22 = S = self._stress(E)
-        energy = float(self._face_energy(E, S).sum())
-        F = len(S11)
-        g = np.empty((3, 2 * F))  # [dW/ds | dW/dt]
-        np.multiply(S11, s, out=g[:, :F])
-        g[:, :F] += S12 * t
-        np.multiply(S12, s, out=g[:, F:])
-        g[:, F:] += S22 * t
-        return energy, self._assembler.gradient_from_edges(g)
+        """Energy and its exact gradient ``(V, 3)`` from one compiled pass over the faces
+        (:func:`.kernels.stretching`; the value is :meth:`value`'s, bit for bit)."""
+        k = self._k
+        value, G = kernels.stretching(self._X(X), k["f0"], k["f1"], k["f2"], k["rest"], True)
+        return float(value), G
 
     def hessian(self, X) -> sp.csr_matrix:
         """Exact (true, possibly indefinite) Hessian, CSR ``(3V, 3V)``, vertex-major dofs.

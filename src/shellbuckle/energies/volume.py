@@ -5,9 +5,7 @@ V = (1/6) sum_f x0 . (x1 x x2) over faces ``(x0, x1, x2)`` with outward orientat
 
 The volume is cubic in the positions and linear in each vertex, which the kernels use:
 
-- value and gradient are explicit component arithmetic on the corner coordinates (no
-  ``np.cross`` over small axes), the gradient summed per vertex by one ``bincount`` per
-  coordinate;
+- value and gradient are one compiled loop over the faces (:func:`.kernels.volume`);
 - the Hessian has no diagonal blocks and its entries are linear in ``X``: its CSR data is one
   product ``B @ X.ravel()`` with a sparse matrix ``B`` built once per mesh;
 - along a straight line the volume is an exact cubic in the step length
@@ -22,16 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .assembly import ElementAssembler
-
-
-def _cross(a, b):
-    """Cross products of the columns of two ``(3, n)`` arrays (given as triples of rows)."""
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,43 +41,25 @@ class Volume:
         object.__setattr__(self, "_corner", np.ascontiguousarray(faces.T))
         object.__setattr__(self, "_hessian_map", self._build_hessian_map(faces, assembler))
 
-    def _corners(self, X: np.ndarray):
-        """Corner coordinates as three triples of ``(F,)`` arrays."""
-        XT = np.asarray(X, dtype=np.float64).T
-        return [tuple(XT[c][self._corner[k]] for c in range(3)) for k in range(3)]
+    def _X(self, X) -> np.ndarray:
+        X = np.ascontiguousarray(X, dtype=np.float64)
+        if X.shape != (self.n_vertices, 3):
+            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
+        return X
 
     def value(self, X: np.ndarray) -> float:
-        x0, x1, x2 = self._corners(X)
-        return float(_dot(x0, _cross(x1, x2)).sum() / 6.0)
-
-    def _scatter(self, local) -> np.ndarray:
-        """Sum per-corner vectors ``local[k]`` (triples of ``(F,)``) into a ``(V, 3)`` array."""
-        idx = self._corner.ravel()
-        g = np.empty((self.n_vertices, 3))
-        for c in range(3):
-            w = np.concatenate([local[0][c], local[1][c], local[2][c]])
-            g[:, c] = np.bincount(idx, weights=w, minlength=self.n_vertices)
-        return g / 6.0
+        return float(kernels.volume(self._X(X), self._corner, False)[0])
 
     def gradient(self, X: np.ndarray) -> np.ndarray:
-        x0, x1, x2 = self._corners(X)
-        return self._scatter((_cross(x1, x2), _cross(x2, x0), _cross(x0, x1)))
+        return kernels.volume(self._X(X), self._corner, True)[1]
 
     def value_and_gradient(self, X: np.ndarray) -> tuple[float, np.ndarray]:
-        x0, x1, x2 = self._corners(X)
-        c12 = _cross(x1, x2)
-        return (float(_dot(x0, c12).sum() / 6.0),
-                self._scatter((c12, _cross(x2, x0), _cross(x0, x1))))
+        value, G = kernels.volume(self._X(X), self._corner, True)
+        return float(value), G
 
     def along(self, X: np.ndarray, D: np.ndarray) -> np.ndarray:
         """Coefficients ``c`` of the exact cubic ``V(X + t D) = c0 + c1 t + c2 t^2 + c3 t^3``."""
-        a, b, c = self._corners(X)
-        da, db, dc = self._corners(D)
-        bc = _cross(b, c)
-        bdc = [u + v for u, v in zip(_cross(b, dc), _cross(db, c))]
-        dbdc = _cross(db, dc)
-        return np.array([_dot(a, bc).sum(), (_dot(da, bc) + _dot(a, bdc)).sum(),
-                         (_dot(da, bdc) + _dot(a, dbdc)).sum(), _dot(da, dbdc).sum()]) / 6.0
+        return kernels.volume_along(self._X(X), self._X(D), self._corner)
 
     def hessian(self, X: np.ndarray) -> sp.csr_matrix:
         data = self._hessian_map @ np.asarray(X, dtype=np.float64).ravel()
