@@ -173,3 +173,28 @@ def test_counting_solver_counts_and_passes_everything_on(backend):
     assert counting.counts == dict(double=1, single=1, solve=2) and counting.n_factor == 2
     assert counting.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
     np.testing.assert_allclose(A @ x, b, atol=1e-10 * np.abs(b).max())
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_keeps_the_previous_double_factorization():
+    # oracle: dense solutions and inertias of three matrices with one pattern; PARDISO holds
+    # the last two double-precision factorizations, approximate ones go to their own handle
+    base = _random_symmetric(50, 1)
+    mats = [base + s * sp.eye(50) for s in (0.0, 4.0, -4.0)]
+    b = np.random.default_rng(1).standard_normal(50)
+    solver = PardisoSolver()
+    handles = []
+    for A in mats[:2]:
+        solver.factor(A)
+        handles.append(solver.held())
+    solver.factor(mats[2], approximate=True)  # does not touch the double factorizations
+    assert solver.held() is None
+    for A, handle in zip(mats[:2], handles):
+        eig = np.linalg.eigvalsh(A.toarray())
+        assert solver.activate(handle) and solver.held() == handle
+        assert solver.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
+        np.testing.assert_allclose(A @ solver.solve(b), b, atol=1e-9 * np.abs(b).max())
+    solver.factor(mats[2])  # overwrites the older of the two
+    assert not solver.activate(handles[0]) and solver.activate(handles[1])
+    np.testing.assert_allclose(mats[1] @ solver.solve(b), b, atol=1e-9 * np.abs(b).max())
+    assert not solver.activate(None)

@@ -16,7 +16,7 @@ from shellbuckle.energies.volume import Volume
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.solve import make_solver, minimize, newton
-from shellbuckle.solve.linear import CountingSolver
+from shellbuckle.solve.linear import CountingSolver, _load_mkl
 from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
 from shellbuckle.solve.newton import (KKTAssembler, _fixes_gauge, pinned_dofs, remove_rigid,
                                      rigid_modes)
@@ -489,12 +489,48 @@ def test_warm_start_reaches_the_cold_minimum_with_the_held_factorization():
     assert n_warm < n_cold
 
 
+def test_a_warm_start_at_a_certified_minimum_of_the_same_energy_certifies_it():
+    # the protocol's return to c0 = 2/R: the factorization at the minimum before the cycle
+    # (two minimizations back; PARDISO still holds it) serves the first steps and, where the
+    # shell returns to that minimum, certifies it. Oracles: KKT, the dense tangent inertia,
+    # the first minimum's energy; a token of another energy or volume never certifies
+    mesh, energy, volume, V0 = shell(4, 1000)
+    X0 = 0.9 ** (1 / 3) * mesh.X
+    X0 = X0 - 0.05 * np.exp(-20 * ((X0[:, 2:] - 0.97) ** 2)) * X0
+    solver = CountingSolver(make_solver())
+    options = dict(solver=solver, pinned=pinned_dofs(mesh.X))
+    first = newton(energy, volume, X0, 0.9 * V0, **options)
+    tok = first.factorization
+    assert first.success and tok.certifies(energy, 0.9 * V0)
+    assert not tok.certifies(energy.with_c0(2.0), 0.9 * V0)  # another object: not trusted
+    assert not tok.certifies(energy, 0.8 * V0)
+    # a point near the minimum, as the flat minimum of the cycle is
+    d = np.random.default_rng(0).standard_normal(X0.shape)
+    start = first.x + 1e-7 * d
+    flat = newton(energy.with_c0(0.0), volume, first.x, 0.9 * V0, warm_start=tok, **options)
+    assert flat.success and flat.factorization is not tok  # factored in between
+    n_double, n_single = solver.counts["double"], solver.counts["single"]
+    back = newton(energy, volume, start, 0.9 * V0, warm_start=[None, tok], history=True,
+                  **options)
+    assert back.success and back.inertia == 0 and back.history[0]["step"] == "quasi-newton"
+    assert back.fun == pytest.approx(first.fun, rel=1e-12)
+    assert_kkt(energy, volume, back, 0.9 * V0)
+    assert tangent_inertia_dense(energy, volume, back.x) == 0
+    if _load_mkl() is not None:  # PARDISO keeps two factorizations: no new one at all
+        assert solver.counts["double"] == n_double and solver.counts["single"] == n_single
+        assert back.factorization is tok
+
+
 def test_a_stale_warm_start_is_ignored():
-    # once the solver has factored another matrix the token no longer describes it: the
-    # minimization must then be exactly the cold one
+    # once the solver no longer holds the factorization (PARDISO keeps the last two in
+    # double precision; each minimization below factors at least once in double) the token
+    # no longer describes it: the minimization must then be exactly the cold one
     mesh, flat, volume, V, solver, first = _c0_cycle_problem()
     options = dict(solver=solver, pinned=pinned_dofs(mesh.X), precondition_at=first.x)
-    cold = newton(flat, volume, first.x, V, **options)  # factors: first's token is stale
+    newton(flat, volume, first.x, V, **options)
+    n_double = solver.counts["double"]
+    cold = newton(flat, volume, first.x, V, **options)  # first's token is stale now
+    assert solver.counts["double"] > n_double
     again = newton(flat, volume, first.x, V, warm_start=first.factorization, **options)
     assert np.array_equal(again.x, cold.x) and again.nit == cold.nit
     # a valid token brings its gauge: asked for another one, the minimization keeps the held

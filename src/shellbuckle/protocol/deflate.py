@@ -338,10 +338,10 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
-    iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, the
-    previous minimization's result when ``X`` is its minimum (the c0 cycle), whose
-    factorization Newton's method then reuses for its first steps instead (same ``prerelax``
-    switch; :mod:`shellbuckle.solve.newton`, "Warm start")."""
+    iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
+    earlier minimizations (the c0 cycle: the previous one ended at ``X``), the first of whose
+    factorizations the linear solver still holds Newton's method then reuses for its first
+    steps instead (same ``prerelax`` switch; :mod:`shellbuckle.solve.newton`, "Warm start")."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -355,8 +355,9 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                    "abandon": lambda X: folded_flat(X, hinges)}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
-        if p.prerelax and warm is not None and warm.factorization is not None:
-            options["warm_start"] = warm.factorization
+        tokens = [w.factorization for w in warm or () if w.factorization is not None]
+        if p.prerelax and tokens:
+            options["warm_start"] = tokens
     return minimize(energy, ctx.volume, X, V_target, method=p.method, tol=p.tol,
                     max_iter=p.max_iter, **options)
 
@@ -423,9 +424,12 @@ def step(ctx: Context, state: State):
         E_before = result.fun
         if p.c0_cycle and (result.success or attempt == retries):
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
-                             relaxed=result.x, warm=result)
+                             relaxed=result.x, warm=(result,))
+            # back at c0 = 2/R the factorization at the minimum before the cycle (the linear
+            # solver keeps it) is the Hessian where the shell most often returns, and certifies
+            # that minimum if it does; else the one at the flat minimum
             result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure, relaxed=flat.x,
-                               warm=flat)
+                               warm=(result, flat))
             iterations += flat.nit + result.nit
         if attempt == retries:
             break

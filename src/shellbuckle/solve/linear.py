@@ -42,7 +42,12 @@ certain. A double-precision solver factors a matrix in single precision when ask
 ``factor(A, approximate=True)`` (a second PARDISO handle with its own symbolic analysis,
 ``refinement = 0``): the Newton method does so for the shifted, positive definite
 preconditioner of its relaxation (:mod:`.newton`), whose solves are corrected by L-BFGS and
-never give a reported inertia; QDLDL and SuperLU ignore the flag. PARDISO is one to two
+never give a reported inertia; QDLDL and SuperLU ignore the flag. PARDISO keeps the last two
+double-precision numeric factorizations of a pattern (``maxfct = 2``): ``held()`` names the
+one in use and ``activate(handle)`` solves with the previous one again while it is held, so
+that a minimization can start from a factorization made two minimizations earlier (the
+protocol's zero-spontaneous-curvature cycle, :mod:`.newton`, "Warm start"); the other
+backends have neither method. PARDISO is one to two
 orders of magnitude faster than QDLDL on shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
 the 3594-vertex mesh (10.8k rows, 0.64M entries) has 3.0M entries in ``L`` and its numeric
 factorization takes about 1.3 GFlop.
@@ -224,6 +229,7 @@ class PardisoSolver:
 
     name = "pardiso"
     _MTYPE = -2
+    _SLOTS = 2
 
     def __init__(self, n_threads: int | None = None, precision: str = "double",
                  refinement: int = 2):
@@ -255,8 +261,14 @@ class PardisoSolver:
         self.n_numeric = 0
         self._approximate = None  # single-precision twin for factor(..., approximate=True)
         self._active = self
+        # two numeric factorizations of one pattern (PARDISO's maxfct = 2, mnum = slot + 1):
+        # each factorization overwrites the older one, so the previous one can still be used
+        self._slot = 0  # the factorization solve() uses
+        self._serial = [0] * self._SLOTS  # number of the factorization held in each slot
+        self._slot_data = [None] * self._SLOTS
+        self._slot_signs = [None] * self._SLOTS
 
-    def _call(self, phase: int, data, b=None, x=None) -> int:
+    def _call(self, phase: int, data, b=None, x=None, slot: int = 0) -> int:
         ct = self._ct
         i32 = ct.c_int32
         err = i32(0)
@@ -266,8 +278,9 @@ class PardisoSolver:
             x = np.zeros(self._n)
         previous = self._set_local_threads(i32(self.n_threads))
         try:
-            self._pardiso(self._pt.ctypes.data_as(ct.c_void_p), ct.byref(i32(1)),
-                          ct.byref(i32(1)), ct.byref(i32(self._MTYPE)), ct.byref(i32(phase)),
+            self._pardiso(self._pt.ctypes.data_as(ct.c_void_p), ct.byref(i32(self._SLOTS)),
+                          ct.byref(i32(slot + 1)), ct.byref(i32(self._MTYPE)),
+                          ct.byref(i32(phase)),
                           ct.byref(i32(self._n)), data.ctypes.data_as(ct.c_void_p),
                           self._pattern.indptr.ctypes.data_as(ct.c_void_p),
                           self._pattern.indices.ctypes.data_as(ct.c_void_p),
@@ -283,6 +296,7 @@ class PardisoSolver:
         if self._pattern is not None:
             self._call(-1, np.zeros(1))
             self._pattern = None
+        self._serial = [0] * self._SLOTS
 
     def __del__(self):
         try:
@@ -322,21 +336,44 @@ class PardisoSolver:
                 self._pattern = None
                 raise SingularFactorError(f"PARDISO analysis failed (error {err})")
             self.n_symbolic += 1
-        self._data = data  # PARDISO reads the values again for iterative refinement in solve
-        err = self._call(22, data)
+        slot = (self._slot + 1) % self._SLOTS  # overwrite the older factorization
+        self._slot, self._serial[slot] = slot, self.n_numeric + 1
+        # PARDISO reads the values again for iterative refinement in solve
+        self._data = self._slot_data[slot] = data
+        self._slot_signs[slot] = None
+        err = self._call(22, data, slot=slot)
         self.n_numeric += 1
         if err:
+            self._serial[slot] = 0
             raise SingularFactorError(f"PARDISO factorization failed (error {err})")
         n_pos, n_neg = int(self._iparm[21]), int(self._iparm[22])
-        self._signs = (n_pos, n_neg, self._n - n_pos - n_neg)
+        self._signs = self._slot_signs[slot] = (n_pos, n_neg, self._n - n_pos - n_neg)
         if self._signs[2]:
+            self._serial[slot] = 0
             raise SingularFactorError(f"{self._signs[2]} zero pivot(s) in the PARDISO factorization")
+
+    def held(self):
+        """A handle of the factorization that :meth:`solve` uses now (``None`` after an
+        ``approximate`` one), for :meth:`activate`."""
+        if self._active is not self or self.precision != "double" or not self._serial[self._slot]:
+            return None
+        return (self._slot, self._serial[self._slot])
+
+    def activate(self, handle) -> bool:
+        """Solve with the factorization of ``handle`` (from :meth:`held`) again, if it is
+        still held: PARDISO keeps the last two double-precision factorizations of a pattern
+        (approximate ones do not count). Whether it was."""
+        if handle is None or self._serial[handle[0]] != handle[1] or not handle[1]:
+            return False
+        self._active, self._slot = self, handle[0]
+        self._data, self._signs = self._slot_data[self._slot], self._slot_signs[self._slot]
+        return True
 
     def _solve_factor(self, b: np.ndarray) -> np.ndarray:
         dtype = np.float32 if self.precision == "single" else np.float64
         b = np.array(b, dtype=dtype)
         x = np.zeros_like(b)
-        err = self._call(33, self._data, b, x)
+        err = self._call(33, self._data, b, x, slot=self._slot)
         if err:
             raise SingularFactorError(f"PARDISO solve failed (error {err})")
         return x.astype(np.float64)
@@ -381,6 +418,14 @@ class CountingSolver:
 
     def inertia(self):
         return self.inner.inertia()
+
+    def held(self):
+        held = getattr(self.inner, "held", None)
+        return None if held is None else held()
+
+    def activate(self, handle) -> bool:
+        activate = getattr(self.inner, "activate", None)
+        return activate is not None and activate(handle)
 
 
 _BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoSolver}
