@@ -46,11 +46,11 @@ Implementation
 The value and the gradient come from one compiled loop over hinges and faces
 (:func:`.kernels.juelicher`, Numba), the Hessian from NumPy kernels vectorized over hinges,
 faces and stars (:mod:`.hinge`); the tests check each gradient against the other and against
-central differences. The 3x3 block pattern, the map from every element block to its pattern block and the CSR layout are built
-once (:class:`_Plan`). A Hessian evaluation writes only the upper local blocks of every hinge,
-face and star (diagonal blocks halved) into a work array, reduces them with one
-``np.bincount`` per block entry into blocks ``U``, and returns ``U + U^T`` gathered straight
-into CSR order (sorted indices, same pattern at every call). Internally, elements and blocks
+central differences. The 3x3 block pattern, the map from every element block to its pattern
+block and the CSR layout are built once (:class:`_Plan`). A Hessian evaluation writes only
+the upper local blocks of every hinge, face and star (diagonal blocks halved) into a work
+array, reduces them with one ``np.bincount`` per block entry into blocks ``U``, and returns
+``U + U^T`` gathered straight into CSR order (sorted indices, same pattern at every call). Internally, elements and blocks
 are ordered by a reverse Cuthill-McKee numbering of the vertices, and each block is stored
 next to its transpose, so that the reductions touch memory locally whatever the mesh's own
 vertex numbering. The work array (``9 x 8 bytes`` per element block, about 5 kB per vertex)
@@ -124,14 +124,8 @@ class Bending:
 
     # ------------------------------------------------------------------ per-vertex quantities
 
-    def _X(self, X):
-        X = np.ascontiguousarray(X, dtype=np.float64)
-        if X.shape != (self.n_vertices, 3):
-            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
-        return X
-
     def _XT(self, X):
-        return np.ascontiguousarray(self._X(X).T)
+        return np.ascontiguousarray(kernels.positions(X, self.n_vertices).T)
 
     def _MA(self, XT):
         p = self._plan
@@ -155,9 +149,14 @@ class Bending:
 
     # ------------------------------------------------------------------ energy interface
 
+    def _compiled(self, X, gradient: bool):
+        """``(value, gradient or (0, 3))`` from :func:`.kernels.juelicher`."""
+        p, X = self._plan, kernels.positions(X, self.n_vertices)
+        value, G = kernels.juelicher(X, p.HT, p.FT, self.kappa, self.c0, gradient)
+        return float(value), G
+
     def value(self, X) -> float:
-        p = self._plan
-        return float(kernels.juelicher(self._X(X), p.HT, p.FT, self.kappa, self.c0, False)[0])
+        return self._compiled(X, False)[0]
 
     def _weights(self, M, A):
         p, kappa, c0 = self._plan, self.kappa, self.c0
@@ -175,9 +174,7 @@ class Bending:
     def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
         """Energy and gradient ``(V, 3)`` from one compiled pass over the mesh
         (:func:`.kernels.juelicher`; the value is :meth:`value`'s, bit for bit)."""
-        p = self._plan
-        value, G = kernels.juelicher(self._X(X), p.HT, p.FT, self.kappa, self.c0, True)
-        return float(value), G
+        return self._compiled(X, True)
 
     def hessian(self, X) -> sp.csr_matrix:
         """Exact (indefinite in general) Hessian, CSR ``(3V, 3V)``, vertex-major dofs."""

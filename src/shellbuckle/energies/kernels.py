@@ -25,6 +25,15 @@ import numpy as np
 from numba import njit
 
 
+def positions(X, n_vertices: int) -> np.ndarray:
+    """``X`` as the compiled loops need it, a C-contiguous float64 ``(n_vertices, 3)`` array
+    (they do not check bounds); a ``ValueError`` naming the shape otherwise."""
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    if X.shape != (n_vertices, 3):
+        raise ValueError(f"positions must have shape ({n_vertices}, 3), got {X.shape}")
+    return X
+
+
 @njit(cache=True, nogil=True)
 def juelicher(X, HT, FT, kappa, c0, gradient):
     """Jülicher bending energy ``sum_i kappa/2 (2 M_i/A_i - c0)^2 A_i`` and its gradient

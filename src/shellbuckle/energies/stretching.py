@@ -360,11 +360,8 @@ class Stretching:
     # ---------------------------------------------------------------- kernels
     def _edges(self, X):
         """Edge vectors ``s = x1 - x0``, ``t = x2 - x0``, component-major ``(3, F)`` each."""
-        X = np.asarray(X, dtype=np.float64)
-        if X.shape != (self.n_vertices, 3):
-            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
         k = self._k
-        Xt = np.ascontiguousarray(X.T)
+        Xt = np.ascontiguousarray(kernels.positions(X, self.n_vertices).T)
         x0 = np.take(Xt, k["f0"], axis=1)
         s = np.take(Xt, k["f1"], axis=1)
         s -= x0
@@ -406,15 +403,14 @@ class Stretching:
         out[self._k["order"]] = self._face_energy(E, self._stress(E)) / self._k["area"]
         return out
 
-    def _X(self, X):
-        X = np.ascontiguousarray(X, dtype=np.float64)
-        if X.shape != (self.n_vertices, 3):
-            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
-        return X
+    def _compiled(self, X, gradient: bool):
+        """``(value, gradient or (0, 3))`` from :func:`.kernels.stretching`."""
+        k, X = self._k, kernels.positions(X, self.n_vertices)
+        value, G = kernels.stretching(X, k["f0"], k["f1"], k["f2"], k["rest"], gradient)
+        return float(value), G
 
     def value(self, X) -> float:
-        k = self._k
-        return float(kernels.stretching(self._X(X), k["f0"], k["f1"], k["f2"], k["rest"], False)[0])
+        return self._compiled(X, False)[0]
 
     def gradient(self, X) -> np.ndarray:
         """Exact gradient, shape ``(V, 3)``."""
@@ -423,9 +419,7 @@ class Stretching:
     def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
         """Energy and its exact gradient ``(V, 3)`` from one compiled pass over the faces
         (:func:`.kernels.stretching`; the value is :meth:`value`'s, bit for bit)."""
-        k = self._k
-        value, G = kernels.stretching(self._X(X), k["f0"], k["f1"], k["f2"], k["rest"], True)
-        return float(value), G
+        return self._compiled(X, True)
 
     def hessian(self, X) -> sp.csr_matrix:
         """Exact (true, possibly indefinite) Hessian, CSR ``(3V, 3V)``, vertex-major dofs.

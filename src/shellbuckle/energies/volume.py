@@ -41,25 +41,24 @@ class Volume:
         object.__setattr__(self, "_corner", np.ascontiguousarray(faces.T))
         object.__setattr__(self, "_hessian_map", self._build_hessian_map(faces, assembler))
 
-    def _X(self, X) -> np.ndarray:
-        X = np.ascontiguousarray(X, dtype=np.float64)
-        if X.shape != (self.n_vertices, 3):
-            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
-        return X
+    def _compiled(self, X, gradient: bool):
+        """``(value, gradient or (0, 3))`` from :func:`.kernels.volume`."""
+        value, G = kernels.volume(kernels.positions(X, self.n_vertices), self._corner, gradient)
+        return float(value), G
 
     def value(self, X: np.ndarray) -> float:
-        return float(kernels.volume(self._X(X), self._corner, False)[0])
+        return self._compiled(X, False)[0]
 
     def gradient(self, X: np.ndarray) -> np.ndarray:
-        return kernels.volume(self._X(X), self._corner, True)[1]
+        return self._compiled(X, True)[1]
 
     def value_and_gradient(self, X: np.ndarray) -> tuple[float, np.ndarray]:
-        value, G = kernels.volume(self._X(X), self._corner, True)
-        return float(value), G
+        return self._compiled(X, True)
 
     def along(self, X: np.ndarray, D: np.ndarray) -> np.ndarray:
         """Coefficients ``c`` of the exact cubic ``V(X + t D) = c0 + c1 t + c2 t^2 + c3 t^3``."""
-        return kernels.volume_along(self._X(X), self._X(D), self._corner)
+        n = self.n_vertices
+        return kernels.volume_along(kernels.positions(X, n), kernels.positions(D, n), self._corner)
 
     def hessian(self, X: np.ndarray) -> sp.csr_matrix:
         data = self._hessian_map @ np.asarray(X, dtype=np.float64).ravel()
