@@ -47,9 +47,9 @@ double-precision numeric factorizations of a pattern (``maxfct = 2``): ``held()`
 one in use and ``activate(handle)`` solves with the previous one again while it is held, so
 that a minimization can start from a factorization made two minimizations earlier (the
 protocol's zero-spontaneous-curvature cycle, :mod:`.newton`, "Warm start"); the other
-backends have neither method. PARDISO is one to two
-orders of magnitude faster than QDLDL on shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
-the 3594-vertex mesh (10.8k rows, 0.64M entries) has 3.0M entries in ``L`` and its numeric
+backends have neither method. PARDISO is one to two orders of magnitude faster than QDLDL on
+shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of the
+3594-vertex mesh (10.8k rows, 0.64M entries) has 3.0M entries in ``L`` and its numeric
 factorization takes about 1.3 GFlop.
 
 PARDISO runs in its conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its
@@ -256,7 +256,6 @@ class PardisoSolver:
         self._iparm[27] = 1 if precision == "single" else 0
         self._pattern = None
         self._n = 0
-        self._signs = None
         self.n_symbolic = 0
         self.n_numeric = 0
         self._approximate = None  # single-precision twin for factor(..., approximate=True)
@@ -264,9 +263,9 @@ class PardisoSolver:
         # two numeric factorizations of one pattern (PARDISO's maxfct = 2, mnum = slot + 1):
         # each factorization overwrites the older one, so the previous one can still be used
         self._slot = 0  # the factorization solve() uses
-        self._serial = [0] * self._SLOTS  # number of the factorization held in each slot
-        self._slot_data = [None] * self._SLOTS
-        self._slot_signs = [None] * self._SLOTS
+        self._serial = [0] * self._SLOTS  # number of the factorization held in each slot (0: none)
+        self._slot_data = [None] * self._SLOTS  # its values (read again by refinement)
+        self._slot_signs = [None] * self._SLOTS  # its inertia
 
     def _call(self, phase: int, data, b=None, x=None, slot: int = 0) -> int:
         ct = self._ct
@@ -327,7 +326,6 @@ class PardisoSolver:
         if self.precision == "single":
             self._upper, self._diagonal = upper, upper.diagonal()  # for the refinement
             data = data.astype(np.float32)
-        self._signs = None
         if not _same_pattern(upper, self._pattern):
             self._release()
             self._pattern, self._n = upper, upper.shape[0]
@@ -337,20 +335,16 @@ class PardisoSolver:
                 raise SingularFactorError(f"PARDISO analysis failed (error {err})")
             self.n_symbolic += 1
         slot = (self._slot + 1) % self._SLOTS  # overwrite the older factorization
-        self._slot, self._serial[slot] = slot, self.n_numeric + 1
-        # PARDISO reads the values again for iterative refinement in solve
-        self._data = self._slot_data[slot] = data
-        self._slot_signs[slot] = None
+        self._slot, self._serial[slot], self._slot_data[slot] = slot, 0, data
         err = self._call(22, data, slot=slot)
         self.n_numeric += 1
         if err:
-            self._serial[slot] = 0
             raise SingularFactorError(f"PARDISO factorization failed (error {err})")
         n_pos, n_neg = int(self._iparm[21]), int(self._iparm[22])
-        self._signs = self._slot_signs[slot] = (n_pos, n_neg, self._n - n_pos - n_neg)
-        if self._signs[2]:
-            self._serial[slot] = 0
-            raise SingularFactorError(f"{self._signs[2]} zero pivot(s) in the PARDISO factorization")
+        signs = self._slot_signs[slot] = (n_pos, n_neg, self._n - n_pos - n_neg)
+        if signs[2]:
+            raise SingularFactorError(f"{signs[2]} zero pivot(s) in the PARDISO factorization")
+        self._serial[slot] = self.n_numeric  # held only once it succeeded
 
     def held(self):
         """A handle of the factorization that :meth:`solve` uses now (``None`` after an
@@ -366,14 +360,18 @@ class PardisoSolver:
         if handle is None or self._serial[handle[0]] != handle[1] or not handle[1]:
             return False
         self._active, self._slot = self, handle[0]
-        self._data, self._signs = self._slot_data[self._slot], self._slot_signs[self._slot]
         return True
+
+    @property
+    def _signs(self):
+        """Inertia of the factorization :meth:`solve` uses (``None`` if none is held)."""
+        return self._slot_signs[self._slot] if self._serial[self._slot] else None
 
     def _solve_factor(self, b: np.ndarray) -> np.ndarray:
         dtype = np.float32 if self.precision == "single" else np.float64
         b = np.array(b, dtype=dtype)
         x = np.zeros_like(b)
-        err = self._call(33, self._data, b, x, slot=self._slot)
+        err = self._call(33, self._slot_data[self._slot], b, x, slot=self._slot)
         if err:
             raise SingularFactorError(f"PARDISO solve failed (error {err})")
         return x.astype(np.float64)
