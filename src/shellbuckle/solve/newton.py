@@ -623,16 +623,16 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     want_inertia = compute_inertia or escape_saddles
     E = nt.value(X)
     dE, mu, nit, records = None, 0.0, 0, []
-    warm = nt.token = next((t for t in tokens if _warm_ok(t, nt)), None)
+    nt.token = next((t for t in tokens if _warm_ok(t, nt)), None)
+    warm = nt.token is not None
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
                                     history)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
-    if warm is not None and warm.certifies(nt.raw_energy, V_target):
-        fact = (warm.X, 0.0, 0)  # a minimum of this energy, certified by the held factorization
-    warm = warm is not None
+    if warm and nt.token.certifies(nt.raw_energy, V_target):
+        fact = (nt.token.X, 0.0, 0)  # a minimum of this energy, certified by the held factorization
     # with a warm start the held factorization serves the first quasi-Newton steps
     pairs, n_quasi, quasi_ok, previous, r_history = [], 0, warm, None, []
     need_gradient, hessian_fresh = True, False
@@ -1000,8 +1000,9 @@ class _Newton:
         inertia = None if signs is None else signs[1] - 1
         held = getattr(self.linsolver, "held", None)
         token.approximate, token.handle = approximate, None if held is None else held()
-        token.X, token.energy, token.V_target = self._X_assembled, _ref(self.raw_energy), self.V_target
-        token.mu, token.inertia = mu, None if approximate else inertia
+        token.X, token.V_target = self._X_assembled, self.V_target
+        token.energy = _ref(self.raw_energy)
+        token.mu, token.inertia = mu, inertia  # certifies() refuses approximate ones
         return True, inertia
 
     def factor_positive(self, mu: float, escape_saddles: bool, approximate: bool = False):
