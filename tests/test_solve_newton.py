@@ -489,6 +489,30 @@ def test_warm_start_reaches_the_cold_minimum_with_the_held_factorization():
     assert n_warm < n_cold
 
 
+@pytest.mark.parametrize("warm", [False, True])
+def test_an_uncertified_minimization_ends_at_the_certified_minimum_with_fewer_factorizations(warm):
+    # the c0 = 0 stage of the protocol's cycle. Oracles: the same minimization certified
+    # (energy, point), KKT conditions and the dense tangent inertia at the uncertified end
+    mesh, flat, volume, V, solver, first = _c0_cycle_problem()
+    runs = []
+    for certify in (True, False):
+        n0 = dict(solver.counts)
+        start = dict(warm_start=first.factorization) if warm else dict(precondition_at=first.x)
+        res = newton(flat, volume, first.x, V, solver=solver, pinned=pinned_dofs(mesh.X),
+                     certify=certify, **start)
+        runs.append((res, {k: solver.counts[k] - n0[k] for k in n0}))
+        assert res.success
+    (certified, n_certified), (uncertified, n_uncertified) = runs
+    assert certified.inertia == 0 and uncertified.inertia is None
+    assert_kkt(flat, volume, uncertified, V)
+    assert tangent_inertia_dense(flat, volume, uncertified.x) == 0
+    assert uncertified.fun == pytest.approx(certified.fun, rel=1e-12)
+    assert np.abs(uncertified.x - certified.x).max() <= 1e-6
+    assert n_uncertified["double"] < n_certified["double"]
+    assert n_uncertified["double"] + n_uncertified["single"] < \
+        n_certified["double"] + n_certified["single"]
+
+
 def test_a_warm_start_at_a_certified_minimum_of_the_same_energy_certifies_it():
     # the protocol's return to c0 = 2/R: the factorization at the minimum before the cycle
     # (two minimizations back; PARDISO still holds it) serves the first steps and, where the

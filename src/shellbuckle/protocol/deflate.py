@@ -335,13 +335,16 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
             f"is not differentiable")
 
 
-def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None):
+def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
+              certify: bool = True):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
     earlier minimizations (the c0 cycle: the previous one ended at ``X``), the first of whose
     factorizations the linear solver still holds Newton's method then reuses for its first
-    steps instead (same ``prerelax`` switch; :mod:`shellbuckle.solve.newton`, "Warm start")."""
+    steps instead (same ``prerelax`` switch; :mod:`shellbuckle.solve.newton`, "Warm start");
+    ``certify=False``: Newton's method stops without factoring to certify the minimum (the
+    c0 = 0 stage of the cycle, whose minimum is neither reported nor kept)."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -351,7 +354,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
         # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
         hinges = ctx.mesh.topology.hinges
-        options = {"solver": ctx.solver, "pinned": ctx.pinned,
+        options = {"solver": ctx.solver, "pinned": ctx.pinned, "certify": certify,
                    "abandon": lambda X: folded_flat(X, hinges)}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
@@ -423,8 +426,9 @@ def step(ctx: Context, state: State):
         iterations += result.nit
         E_before = result.fun
         if p.c0_cycle and (result.success or attempt == retries):
+            # the flat minimum is a waypoint (neither reported nor kept): not certified
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
-                             relaxed=result.x, warm=(result,))
+                             relaxed=result.x, warm=(result,), certify=False)
             # back at c0 = 2/R the factorization at the minimum before the cycle (the linear
             # solver keeps it) is the Hessian where the shell most often returns, and certifies
             # that minimum if it does; else the one at the flat minimum
