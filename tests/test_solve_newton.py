@@ -441,6 +441,36 @@ def test_abandon_is_asked_after_the_relaxation_and_each_newton_step_only():
     assert done.success
 
 
+def test_a_relaxation_step_cut_short_asks_abandon_and_a_reason_stops_there(monkeypatch):
+    # a fold made by the jiggle cuts every relaxation step to nothing: the hook is asked after
+    # such a step, not only once the relaxation has run its course. Oracle: the number of
+    # relaxation steps taken before the hook objects (every step counts as cut here)
+    import importlib
+
+    from shellbuckle.solve.newton import ABANDONED
+
+    newton_module = importlib.import_module("shellbuckle.solve.newton")  # not the function
+
+    mesh, energy, volume, V0 = shell(3, 1000)
+    shrunk = 0.95 ** (1 / 3) * mesh.X
+    X0 = shrunk + 0.01 * np.random.default_rng(5).standard_normal(mesh.X.shape)
+    ref = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True)
+    n_relax = sum(h["step"] == "relax" for h in ref.history)
+    assert n_relax >= 4
+    monkeypatch.setattr(newton_module, "RELAX_ASK_ALPHA", 1.5)
+    calls = []
+
+    def third(X):
+        calls.append(1)
+        return "folded" if len(calls) >= 3 else None
+
+    res = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                 abandon=third)
+    assert not res.success and res.message == f"{ABANDONED}: folded"
+    assert [h["step"] for h in res.history] == ["relax"] * 3
+    assert res.fun == pytest.approx(ref.history[2]["energy"], rel=1e-12)
+
+
 @pytest.mark.parametrize("bending", ["juelicher", "evolver"])
 def test_fused_value_and_gradient_are_the_separate_ones(bending):
     # oracle: the separate calls (Newton evaluates accepted points once, value and gradient

@@ -248,6 +248,10 @@ relative, over ``RELAX_WINDOW`` steps."""
 RELAX_WINDOW = 5
 RELAX_MEMORY = 20
 """Secant pairs kept by the relaxation's L-BFGS."""
+RELAX_ASK_ALPHA = 1e-3
+"""A relaxation step cut below this fraction of its length asks ``abandon`` (a triangle folded
+onto its neighbour by the jiggle stops the steps: gamma = 271, step 21, every step after the
+36th was cut below 1e-3, and the relaxation went on to its 55th before Newton's method asked)."""
 JAM_STEPS = 10
 """Newton steps without progress after which a minimization stops as stalled (:func:`_jammed`)."""
 SINGLE_JAM_STEPS = 3
@@ -651,7 +655,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
-                                    history)
+                                    history, abandon)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     if warm and nt.token.certifies(nt.raw_energy, V_target):
@@ -784,7 +788,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                           factorization=held)
 
 
-def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, history):
+def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, history,
+           abandon=None):
     """Preconditioned relaxation (see the module docstring): L-BFGS steps whose initial
     inverse Hessian is the KKT solve with the Hessian at ``X_ref`` shifted by
     ``shift mean|diag K|`` (raised x4 until positive definite on the tangent space), from
@@ -794,7 +799,9 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     ``RELAX_ROUGH_FULL`` consecutive steps are taken in full or the energy test above holds;
     the matrix is then factored again with ``shift`` (the secant pairs are kept: they describe
     the energy, not the preconditioner). No rough stage when ``X`` lies farther than
-    ``RELAX_ROUGH_MAX_MOVE`` mean edge lengths (rms) from ``X_ref``.
+    ``RELAX_ROUGH_MAX_MOVE`` mean edge lengths (rms) from ``X_ref``. After a step cut below
+    ``RELAX_ASK_ALPHA`` of its length, ``abandon(X)`` is asked, and a reason ends the
+    relaxation (Newton's method then asks again and stops).
     Returns ``(X, E, steps, history records)``."""
     energy, volume, V_target = nt.energy, nt.volume, nt.V_target
     rough, shift = shifts
@@ -837,6 +844,8 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
         if history:
             records.append(dict(iteration=n - 1, energy=E, grad_norm=r_norm, lam=lam,
                                 inertia=None, mu=np.nan, step="relax", alpha=alpha, rho=np.nan))
+        if abandon is not None and alpha < RELAX_ASK_ALPHA and abandon(X):
+            break
         if len(energies) > RELAX_WINDOW and energies[-1 - RELAX_WINDOW] - E <= tol * abs(E):
             if rough is None:
                 break
