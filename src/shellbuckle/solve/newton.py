@@ -175,8 +175,9 @@ factorization with inertia 0 at a point ``X1`` of the same energy object and vol
 (:meth:`_Factorization.certifies`) counts as the last unshifted factorization of the
 minimization (the rule of "Convergence": a final point within ``inertia_step`` of ``X1``
 needs no new factorization). The protocol's return from ``c0 = 0`` to ``2/R`` starts with
-the factorization at the minimum before the cycle, two factorizations back: where the shell
-returns to that minimum it is the Hessian at the destination and certifies it. Measured on
+the factorization at the minimum before the cycle (the c0 = 0 stage between them is not
+certified, "Uncertified minima", so it is usually the solver's last double-precision one):
+where the shell returns to that minimum it is the Hessian at the destination and certifies it. Measured on
 replays (every 4th step): 0.3-0.8 fewer double-precision factorizations per step at gamma =
 271 and 20995, none at 2333 (there the tails of the minimization move the shell by more than
 ``inertia_step`` along its soft modes); before buckling the return costs two quasi-Newton
@@ -249,9 +250,13 @@ RELAX_WINDOW = 5
 RELAX_MEMORY = 20
 """Secant pairs kept by the relaxation's L-BFGS."""
 RELAX_ASK_ALPHA = 1e-3
-"""A relaxation step cut below this fraction of its length asks ``abandon`` (a triangle folded
-onto its neighbour by the jiggle stops the steps: gamma = 271, step 21, every step after the
-36th was cut below 1e-3, and the relaxation went on to its 55th before Newton's method asked)."""
+RELAX_ASK_STEPS = 5
+"""After ``RELAX_ASK_STEPS`` consecutive relaxation steps cut below ``RELAX_ASK_ALPHA`` of
+their length, ``abandon`` is asked (and again after every further such step): a triangle folded
+onto its neighbour by the jiggle stops the steps (gamma = 271, step 21: every step after the
+36th was cut below 1e-3, and the relaxation went on to its 55th before Newton's method asked).
+Not after one such step: on a 40k-vertex mesh (gamma = 2333, step 2) a hinge reached 179.993
+degrees at one cut step, and the relaxation went on, unfolded it and converged."""
 JAM_STEPS = 10
 """Newton steps without progress after which a minimization stops as stalled (:func:`_jammed`)."""
 SINGLE_JAM_STEPS = 3
@@ -799,9 +804,10 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     ``RELAX_ROUGH_FULL`` consecutive steps are taken in full or the energy test above holds;
     the matrix is then factored again with ``shift`` (the secant pairs are kept: they describe
     the energy, not the preconditioner). No rough stage when ``X`` lies farther than
-    ``RELAX_ROUGH_MAX_MOVE`` mean edge lengths (rms) from ``X_ref``. After a step cut below
-    ``RELAX_ASK_ALPHA`` of its length, ``abandon(X)`` is asked, and a reason ends the
-    relaxation (Newton's method then asks again and stops).
+    ``RELAX_ROUGH_MAX_MOVE`` mean edge lengths (rms) from ``X_ref``. After
+    ``RELAX_ASK_STEPS`` consecutive steps cut below ``RELAX_ASK_ALPHA`` of their length,
+    ``abandon(X)`` is asked, and a reason ends the relaxation (Newton's method then asks
+    again and stops).
     Returns ``(X, E, steps, history records)``."""
     energy, volume, V_target = nt.energy, nt.volume, nt.V_target
     rough, shift = shifts
@@ -814,7 +820,7 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
                           approximate=True) is None:
         return X, E, 0, []
     pairs, previous, energies, records = [], None, [E], []
-    n, full = 0, 0
+    n, full, cut = 0, 0, 0
     while n < max_it:
         if rough is not None and full >= RELAX_ROUGH_FULL:
             rough, energies = None, [E]
@@ -844,7 +850,8 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
         if history:
             records.append(dict(iteration=n - 1, energy=E, grad_norm=r_norm, lam=lam,
                                 inertia=None, mu=np.nan, step="relax", alpha=alpha, rho=np.nan))
-        if abandon is not None and alpha < RELAX_ASK_ALPHA and abandon(X):
+        cut = cut + 1 if alpha < RELAX_ASK_ALPHA else 0
+        if abandon is not None and cut >= RELAX_ASK_STEPS and abandon(X):
             break
         if len(energies) > RELAX_WINDOW and energies[-1 - RELAX_WINDOW] - E <= tol * abs(E):
             if rough is None:
