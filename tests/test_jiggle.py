@@ -253,3 +253,74 @@ def test_a_minimization_abandoned_on_a_fold_is_jiggled_again(monkeypatch):
     monkeypatch.setattr(deflate, "_minimize", first_abandoned)
     _, record = deflate.step(ctx, state)
     assert record["jiggle_attempts"] == 2 and record["converged"] and len(calls) == 4
+
+
+def _folded_icosphere(h=17):
+    # the vertex l of hinge h moved onto k: the face (j, i, l) lies on (i, j, k)
+    from shellbuckle.energies.total import ShellEnergy
+    from shellbuckle.params import ShellParameters
+
+    mesh = icosphere(3)
+    energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(271.0, nu=1.0 / 3.0))
+    X = mesh.X.copy()
+    i, j, k, l = mesh.topology.hinges[h]
+    X[l] = X[k]
+    return mesh, energy, X
+
+
+def test_unfold_reflects_one_vertex_of_a_folded_hinge_through_its_edge():
+    # oracles: geometry (a reflection through the line ij keeps the distances to i and j, and
+    # undoes X[l] = X[k] up to the mirror image of k), the fold test, and the energy
+    from shellbuckle.protocol.deflate import folded_flat, unfold
+
+    mesh, energy, X = _folded_icosphere()
+    hinges = mesh.topology.hinges
+    i, j, k, l = hinges[17]
+    assert folded_flat(X, hinges) is not None
+    Y, opened = unfold(energy, X, hinges)
+    assert opened == 1 and folded_flat(Y, hinges) is None
+    moved = np.flatnonzero(np.any(Y != X, axis=1))
+    assert len(moved) == 1 and moved[0] in (k, l)
+    v = moved[0]
+    for end in (i, j):
+        assert np.linalg.norm(Y[v] - Y[end]) == pytest.approx(np.linalg.norm(X[v] - X[end]),
+                                                               rel=1e-12)
+    axis = (X[j] - X[i]) / np.linalg.norm(X[j] - X[i])
+    foot = X[i] + ((X[v] - X[i]) @ axis) * axis
+    assert np.allclose(Y[v] + X[v], 2 * foot, atol=1e-14)  # the mirror image through the line
+    assert energy.value(Y) < energy.value(X)
+    same, none = unfold(energy, mesh.X, hinges)
+    assert none == 0 and np.array_equal(same, mesh.X)
+
+
+def test_a_minimization_abandoned_on_a_fold_is_unfolded_and_goes_on(monkeypatch):
+    # the first minimization "stops" on a real fold (X[l] = X[k] on its result): the step
+    # opens it and minimizes again from the opened state, without a new jiggle
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.solve.newton import ABANDONED
+
+    mesh, _, folded = _folded_icosphere()
+    hinges = mesh.topology.hinges
+    ctx, state = deflate.init(mesh, ShellParameters.from_gamma(271.0, nu=1.0 / 3.0),
+                              Protocol(schedule=(0.019,), seed=4))
+    minimize, starts = deflate._minimize, []
+
+    def first_folded(ctx_, energy, X, *args, **kwargs):
+        starts.append(np.array(X, copy=True))
+        result = minimize(ctx_, energy, X, *args, **kwargs)
+        if len(starts) == 1:
+            x = result.x.copy()
+            i, j, k, l = hinges[17]
+            x[l] = x[k]
+            return dataclasses.replace(result, x=x, success=False,
+                                       message=f"{ABANDONED}: a fold")
+        return result
+
+    monkeypatch.setattr(deflate, "_minimize", first_folded)
+    _, record = deflate.step(ctx, state)
+    assert record["jiggle_attempts"] == 1 and record["converged"] and len(starts) == 4
+    assert deflate.folded_flat(starts[1], hinges) is None  # started from the opened fold
+    assert record["inertia"] == 0
