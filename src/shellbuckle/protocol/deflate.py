@@ -86,8 +86,7 @@ energy of an admissible state (the shrunk reference sphere, or the step's start 
 target volume; a large jiggle can fold a triangle over one of its edges, which
 keeps the triangle's metric and so costs no stretching energy, and the minimizer may stay
 tangled; see ``_tangled``), or that is abandoned because two faces lie folded onto each
-other (``folded_flat``) and stays so after ``FOLD_REPAIRS`` openings of the fold
-(``unfold``), is started again from the step's start with a jiggle of half the
+other (``folded_flat``), is started again from the step's start with a jiggle of half the
 amplitude drawn from ``default_rng([seed, step, attempt])``, at most this many times; so is a
 step whose surface intersects itself only in a fold (``only_local``), or that intersects itself
 without having converged (not a minimum, so its contact does not end the run). The table
@@ -336,42 +335,6 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
             f"is not differentiable")
 
 
-FOLD_REPAIRS = 2
-"""Times the first minimization of a step, abandoned on a fold (:func:`folded_flat`), is
-unfolded (:func:`unfold`) and started again from there before the step is jiggled again."""
-
-
-def unfold(energy, X: np.ndarray, hinges: np.ndarray,
-           tol: float = FLAT_FOLD_TOL) -> tuple[np.ndarray, int]:
-    """``X`` with every hinge folded flat (dihedral angle within ``tol`` of 180 degrees)
-    opened again, and the number of hinges opened.
-
-    Of the two vertices opposite the hinge's edge ``(i, j)``, one is reflected through the line
-    ``ij`` (in the plane of that line and the vertex): the flip across the edge that the jiggle
-    made is undone, the vertex keeps its distances to ``i`` and ``j`` (the metric of its face
-    on the hinge) and the two faces lie on either side of the edge again. Of the two
-    reflections, the one of lower ``energy`` is kept. The minimization that stopped at the fold
-    goes on from there: on the paper's mesh (gamma = 271, dV/V = 0.399) it then ends at the
-    minimum that a new jiggle of half the amplitude reaches (the same energy to 1e-12) in half
-    its iterations (73 against 140), and the step keeps its jiggle."""
-    Y = np.array(X, dtype=float, copy=True)
-    opened = 0
-    for h in np.flatnonzero(np.pi - np.abs(dihedral_angles(Y, hinges)) <= tol):
-        i, j, k, l = (int(v) for v in hinges[h])
-        if np.pi - abs(float(dihedral_angles(Y, hinges[h:h + 1])[0])) > tol:
-            continue  # opened with an earlier hinge
-        axis = (Y[j] - Y[i]) / np.linalg.norm(Y[j] - Y[i])
-        trials = []
-        for v in (k, l):
-            foot = Y[i] + float((Y[v] - Y[i]) @ axis) * axis
-            Z = Y.copy()
-            Z[v] = 2.0 * foot - Y[v]
-            trials.append((energy.value(Z), v, Z))
-        Y = min(trials, key=lambda t: t[0])[2]
-        opened += 1
-    return Y, opened
-
-
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
               certify: bool = True):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
@@ -461,16 +424,6 @@ def step(ctx: Context, state: State):
         X = jiggle(state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X)
         iterations += result.nit
-        for _ in range(FOLD_REPAIRS):  # a fold left by the jiggle: open it and go on
-            if result.success or not result.message.startswith(ABANDONED):
-                break
-            X, opened = unfold(ctx.energy, result.x, ctx.mesh.topology.hinges)
-            if not opened:
-                break
-            log.info("step %d: %s; opened %d folded hinge(s) and minimizing again", k,
-                     result.message, opened)
-            result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X)
-            iterations += result.nit
         E_before = result.fun
         if p.c0_cycle and (result.success or attempt == retries):
             # the flat minimum is a waypoint (neither reported nor kept): not certified
