@@ -431,7 +431,7 @@ def step(ctx: Context, state: State):
                              relaxed=result.x, warm=(result,), certify=False)
             # back at c0 = 2/R the factorization at the minimum before the cycle (the linear
             # solver keeps it) is the Hessian where the shell most often returns, and certifies
-            # that minimum if it does; else the one at the flat minimum
+            # that minimum if it does; else a double-precision one of the flat stage, if any
             result = _minimize(ctx, ctx.energy, flat.x, V_target, pressure, relaxed=flat.x,
                                warm=(result, flat))
             iterations += flat.nit + result.nit

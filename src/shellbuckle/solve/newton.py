@@ -177,11 +177,11 @@ minimization (the rule of "Convergence": a final point within ``inertia_step`` o
 needs no new factorization). The protocol's return from ``c0 = 0`` to ``2/R`` starts with
 the factorization at the minimum before the cycle (the c0 = 0 stage between them is not
 certified, "Uncertified minima", so it is usually the solver's last double-precision one):
-where the shell returns to that minimum it is the Hessian at the destination and certifies it. Measured on
-replays (every 4th step): 0.3-0.8 fewer double-precision factorizations per step at gamma =
-271 and 20995, none at 2333 (there the tails of the minimization move the shell by more than
-``inertia_step`` along its soft modes); before buckling the return costs two quasi-Newton
-steps and no factorization.
+where the shell returns to that minimum it is the Hessian at the destination and certifies
+it. Measured on replays (every 4th step): 0.3-0.8 fewer double-precision factorizations per
+step at gamma = 271 and 20995, none at 2333 (there the tails of the minimization move the
+shell by more than ``inertia_step`` along its soft modes); before buckling the return costs
+two quasi-Newton steps and no factorization.
 
 Convergence
 -----------
@@ -204,8 +204,8 @@ double-precision factorization is made only to show inertia 0 at the final point
 precision included) sets the shift, and a quasi-Newton or shifted Newton iteration from a
 generic start does not converge to a saddle. The deflation protocol uses it for the c0 = 0
 stage of its cycle: that minimum is a waypoint, neither reported nor kept, and the return to
-c0 = 2/R is certified as usual. It saves one factorization (~85 ms on the paper's mesh, one
-thread) of about sixteen per volume step.
+c0 = 2/R is certified as usual. It saves one double-precision factorization (~85 ms on the
+paper's mesh, one thread) per volume step, of about twelve.
 
 ``max_iter`` bounds the Newton steps, i.e. the factorizations of ``K`` (the costly part);
 the quasi-Newton steps that reuse a factorization (at most ``max_quasi`` per Newton step) and
