@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .stretching import FaceAssembler
 
 
@@ -78,10 +79,7 @@ class Area:
 
     def _edges(self, X):
         """``s = x1 - x0``, ``t = x2 - x0`` component-major ``(3, F)`` and ``n = s x t``."""
-        X = np.asarray(X, dtype=np.float64)
-        if X.shape != (self.n_vertices, 3):
-            raise ValueError(f"positions must have shape ({self.n_vertices}, 3), got {X.shape}")
-        Xt = np.ascontiguousarray(X.T)
+        Xt = np.ascontiguousarray(kernels.positions(X, self.n_vertices).T)
         faces = self._sorted_faces
         x0 = np.take(Xt, faces[:, 0], axis=1)
         s = np.take(Xt, faces[:, 1], axis=1) - x0
