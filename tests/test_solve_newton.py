@@ -201,6 +201,38 @@ def test_kkt_assembler_matches_the_dense_kkt_matrix():
     assert np.shares_memory(again.indptr, upper.indptr)
 
 
+def test_kkt_assembler_follows_a_change_of_term_patterns():
+    # oracle: the dense KKT matrix after each change; a term whose pattern lies within the
+    # current one keeps the matrix pattern, one with new entries widens it
+    rng = np.random.default_rng(5)
+    n_dofs = 36
+    free = np.setdiff1d(np.arange(n_dofs), [0, 7, 20, 21, 30, 35])
+    g = rng.standard_normal((n_dofs // 3, 3))
+
+    def sym(density, seed):
+        M = sp.random(n_dofs, n_dofs, density=density, random_state=seed)
+        return (M + M.T).tocsr()
+
+    wide, other = sym(0.3, 1), sym(0.1, 2)
+    half = sp.triu(wide, format="csr")
+    half.data[rng.random(half.nnz) < 0.5] = 0.0
+    half.eliminate_zeros()
+    narrow = (half + sp.triu(half, k=1).T).tocsr()  # symmetric, a sub-pattern of ``wide``
+    kkt = KKTAssembler(free, n_dofs)
+    patterns = []
+    for mats in ([wide, other], [narrow, other], [wide, sym(0.3, 3)]):
+        terms = list(zip(mats, (1.0, 0.5)))
+        upper = kkt.matrix(kkt.build(terms, g))
+        full = (upper + sp.triu(upper, k=1).T).toarray()
+        K = sum(c * M.toarray() for M, c in terms)[np.ix_(free, free)]
+        gf = g.ravel()[free]
+        expected = np.block([[K, gf[:, None]], [gf[None, :], np.zeros((1, 1))]])
+        np.testing.assert_allclose(full, expected, rtol=0, atol=1e-14)
+        patterns.append(upper.indices.size)
+    assert patterns[1] == patterns[0]  # kept
+    assert patterns[2] > patterns[0]  # widened
+
+
 @pytest.mark.parametrize("max_quasi", [0, 10])
 def test_quasi_newton_steps_reach_the_newton_minimum(max_quasi):
     # oracle: KKT conditions, dense inertia at the final point, agreement with plain Newton
