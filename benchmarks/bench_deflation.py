@@ -75,9 +75,11 @@ def _threads_text(threads: int) -> str:
 
 
 def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool,
-            jiggle: float | None = None, prerelax: bool = True, threads: int = 1) -> dict:
+            jiggle: float | None = None, prerelax: bool = True, direct_return: bool = True,
+            threads: int = 1) -> dict:
     params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
-    protocol = Protocol.paper(dv=dv, until=until, seed=seed, jiggle=jiggle, prerelax=prerelax)
+    protocol = Protocol.paper(dv=dv, until=until, seed=seed, jiggle=jiggle, prerelax=prerelax,
+                              direct_return=direct_return)
     recorder = _Recorder()
     protocol_mod._minimize = recorder
     try:
@@ -136,6 +138,9 @@ def main(argv=None) -> None:
     parser.add_argument("--no-prerelax", action="store_true",
                         help="Newton from the jiggled state at once, without the preconditioned "
                              "relaxation (the solver before it existed)")
+    parser.add_argument("--no-direct-return", action="store_true",
+                        help="after the c0 cycle always minimize from the flat minimum (the "
+                             "protocol before its direct return existed)")
     parser.add_argument("--jiggle", type=float,
                         help="jiggle as a fraction of the mean edge length instead of the "
                              "protocol's default (Surface Evolver's temperature 0.05)")
@@ -164,7 +169,7 @@ def main(argv=None) -> None:
                   "(not counted)", flush=True)
         r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=args.seed,
                     per_step=args.steps, jiggle=args.jiggle, prerelax=not args.no_prerelax,
-                    threads=args.threads)
+                    direct_return=not args.no_direct_return, threads=args.threads)
         rows.append(r)
         print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s wall, "
               f"{r['cpu']:.1f} s CPU (init {r['init']:.1f} s)", flush=True)

@@ -71,6 +71,9 @@ def test_protocol_jiggle_options():
     # ... and, stored before the preconditioned relaxation, resumes without it
     old.pop("prerelax")
     assert default.prerelax and not Protocol.from_dict(old).prerelax
+    # ... and, stored before the direct return of the c0 cycle, resumes without it
+    old.pop("direct_return")
+    assert default.direct_return and not Protocol.from_dict(old).direct_return
 
 
 def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(monkeypatch):

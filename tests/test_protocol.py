@@ -143,6 +143,67 @@ def test_c0_cycle_turns_the_quenched_potato_into_a_single_dent(seed):
     assert classify(potato[-1].X, mesh.faces).n_dimples >= 3
 
 
+def test_downhill_path_takes_a_falling_path_and_refuses_one_over_a_bump():
+    # oracle: energies whose profile along the straight path is known (restoring the volume
+    # moves each sample by much less than the samples' spacing)
+    from shellbuckle.energies.volume import Volume
+    from shellbuckle.protocol.deflate import downhill_path
+
+    mesh = icosphere(2)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    X0 = mesh.X
+    V = volume.value(X0)
+    X1 = X0 + 0.05 * np.random.default_rng(3).standard_normal(X0.shape)
+    X1 *= (V / volume.value(X1)) ** (1 / 3)
+    d = (X1 - X0).ravel()
+
+    class Along:  # E = f(t), t the (tangential) position along the path from X0 to X1
+        def __init__(self, f):
+            self.f = f
+
+        def value(self, X):
+            return float(self.f(((X - X0).ravel() @ d) / (d @ d)))
+
+    assert downhill_path(Along(lambda t: -t), volume, X0, X1, V)
+    assert downhill_path(Along(lambda t: (t - 1.05) ** 2), volume, X0, X1, V)
+    assert not downhill_path(Along(lambda t: -np.cos(2 * np.pi * t)), volume, X0, X1, V)
+    # a bump narrower than the samples' spacing is not seen: the samples decide
+    narrow = Along(lambda t: -t + np.exp(-((t - 0.55) / 0.01) ** 2))
+    assert downhill_path(narrow, volume, X0, X1, V)
+    assert not downhill_path(narrow, volume, X0, X1, V, samples=20)
+    with pytest.raises(ValueError, match="samples must be an integer >= 1, got 0"):
+        downhill_path(Along(lambda t: -t), volume, X0, X1, V, samples=0)
+
+
+def test_the_direct_return_of_the_c0_cycle_ends_where_the_full_return_does():
+    # oracle: the same step (same start, same jiggle) with the last minimization of the c0
+    # cycle started at the flat minimum, after buckling, where the cycle moves the dent
+    import dataclasses
+
+    from shellbuckle.mesh.random_sphere import random_sphere
+    from shellbuckle.protocol.jiggle import mean_edge_length
+
+    mesh = random_sphere(1000, seed=1)
+    params = ShellParameters.from_gamma(2333.0, nu=1 / 3)
+    full = Protocol.paper(until=0.1, seed=1, direct_return=False)
+    ctx_full, states, records = _run(mesh, params, full)
+    assert records[1]["pressure"] > records[2]["pressure"]  # buckled at step 3
+    ctx_direct = dataclasses.replace(ctx_full, protocol=dataclasses.replace(full,
+                                                                            direct_return=True))
+    edge = mean_edge_length(mesh.X, mesh.topology.edges)
+    for state in states[2:5]:  # steps 3-5
+        X_full, r_full = step(ctx_full, state)
+        X_direct, r_direct = step(ctx_direct, state)
+        assert r_full["converged"] and r_direct["converged"]
+        assert r_full["inertia"] == 0 and r_direct["inertia"] == 0
+        assert r_direct["E_before_c0_cycle"] == r_full["E_before_c0_cycle"]  # the same first minimization
+        assert r_direct["E_total"] == pytest.approx(r_direct["E_before_c0_cycle"], rel=1e-13)
+        assert r_direct["E_total"] == pytest.approx(r_full["E_total"], rel=1e-10)
+        assert r_direct["pressure"] == pytest.approx(r_full["pressure"], rel=1e-6)
+        assert np.abs(X_direct.X - X_full.X).max() < 1e-2 * edge
+        assert r_direct["iterations"] < r_full["iterations"]
+
+
 def test_a_step_gives_the_same_bits_on_any_number_of_threads():
     # A threaded BLAS sums dot products in another order, and PARDISO's parallel factorization
     # its updates: without one BLAS thread inside the protocol and PARDISO's reproducibility

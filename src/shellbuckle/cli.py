@@ -259,6 +259,10 @@ def _register_deflate(sub) -> None:
     proto.add_argument("--no-prerelax", action="store_true",
                        help="start each Newton minimization at once, without the relaxation "
                             "preconditioned by the step's starting state (slower; for comparisons)")
+    proto.add_argument("--no-direct-return", action="store_true",
+                       help="after the zero-curvature cycle always minimize from the flat "
+                            "minimum, never from the minimum before the cycle (slower; for "
+                            "comparisons)")
     branch = parser.add_argument_group("continue from a stored step (re-inflation, other paths)")
     branch.add_argument("--from", dest="from_run", metavar="DIR",
                         help="start from a step of the run in DIR (its reference sphere, "
@@ -313,7 +317,7 @@ def _cmd_deflate(args) -> int:
     options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                    temperature=args.temperature, seed=args.seed, bending=args.bending,
                    method=args.method, max_iter=args.max_iter, c0=args.c0,
-                   prerelax=not args.no_prerelax)
+                   prerelax=not args.no_prerelax, direct_return=not args.no_direct_return)
     if pressures is not None:
         Protocol(schedule=tuple(pressures), control="pressure", **options)
     elif schedule is None:
@@ -339,7 +343,8 @@ def _cmd_deflate(args) -> int:
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                   temperature=args.temperature, seed=args.seed,
                   bending=args.bending, method=args.method, max_iter=args.max_iter, c0=c0,
-                  prerelax=not args.no_prerelax, out=args.out,
+                  prerelax=not args.no_prerelax, direct_return=not args.no_direct_return,
+                  out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),
                   pressures=pressures, threads=args.threads)
     return _report_run(run, plot=not args.no_plot)

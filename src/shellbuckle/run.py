@@ -129,7 +129,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
-            c0: float | None = None, prerelax: bool = True, out=None,
+            c0: float | None = None, prerelax: bool = True, direct_return: bool = True,
+            out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None, threads: int | None = None) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
@@ -150,6 +151,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
     ``prerelax`` starts every Newton minimization with the preconditioned relaxation (see
     :class:`~shellbuckle.protocol.deflate.Protocol`); off, Newton starts at once (slower).
+    ``direct_return``: after the zero-curvature cycle the last minimization starts at the
+    minimum before the cycle when the way there is downhill (see
+    :func:`~shellbuckle.protocol.deflate.downhill_path`); off, always at the flat minimum.
     ``threads``: threads of the sparse factorization (default: the cores this process may
     use); a matter of speed only, the results are the same bits on any number.
     """
@@ -162,7 +166,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     mesh = mesh or random_sphere(3594, seed=seed)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
-                   stop_at_contact=stop_at_contact, prerelax=prerelax)
+                   stop_at_contact=stop_at_contact, prerelax=prerelax,
+                   direct_return=direct_return)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
