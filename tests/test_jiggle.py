@@ -114,6 +114,35 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     assert np.allclose(r.x, state.X, atol=1e-12)
 
 
+def test_a_stalled_minimization_goes_through_the_c0_cycle(monkeypatch):
+    # a minimization that stops without converging, neither on a fold nor tangled (it stalled
+    # on soft modes: gamma = 20995, dV/V = 0.608, residual 6e-5), is the step's last attempt;
+    # the cycle then starts from it and converges the step, as the paper's protocol cycles
+    # after every minimization (before, the step ended unconverged there, without the cycle)
+    import dataclasses
+
+    import shellbuckle.protocol.deflate as deflate
+    from shellbuckle.params import ShellParameters
+
+    mesh = icosphere(3)
+    params = ShellParameters.from_gamma(271.0, nu=1.0 / 3.0)
+    protocol = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
+    ctx, state = deflate.init(mesh, params, protocol)
+    minimize, calls = deflate._minimize, []
+
+    def first_stalls(*args, **kwargs):
+        result = minimize(*args, **kwargs)
+        calls.append(kwargs.get("warm") is None)
+        if len(calls) == 1:  # at its own (low) energy: not tangled
+            return dataclasses.replace(result, success=False, message="stalled: (a test)")
+        return result
+
+    monkeypatch.setattr(deflate, "_minimize", first_stalls)
+    _, record = deflate.step(ctx, state)
+    assert calls == [True, False, False]  # the minimization, then the two of the cycle
+    assert record["jiggle_attempts"] == 1 and record["converged"] and record["inertia"] == 0
+
+
 def test_an_unconverged_step_that_intersects_itself_is_jiggled_again(monkeypatch):
     # not a minimum, so its self-intersection (here: one vertex pushed through the far side of
     # the shell) must not end the run as a contact; a converged one does

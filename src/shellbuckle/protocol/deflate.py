@@ -467,7 +467,13 @@ def step(ctx: Context, state: State):
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X)
         iterations += result.nit
         E_before = result.fun
-        if p.c0_cycle and (result.success or attempt == retries):
+        # a minimization that gave up on a fold or a tangle is jiggled again at once; one that
+        # stopped without converging otherwise (it stalled on soft modes) goes through the
+        # cycle, which often converges it
+        again = (not result.success and attempt < retries
+                 and (result.message.startswith(ABANDONED)
+                      or _tangled(ctx, result.fun, V_target, state.X)))
+        if p.c0_cycle and not again:
             # the flat minimum is a waypoint (neither reported nor kept): not certified
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
                              relaxed=result.x, warm=(result,), certify=False)
