@@ -421,6 +421,13 @@ def _tangled(ctx: Context, E: float, V_target, X_start: np.ndarray) -> bool:
     return E > admissible + 0.05 * abs(admissible) + ctx.params.kappa
 
 
+def _start_again(ctx: Context, result, V_target, X_start: np.ndarray) -> bool:
+    """Whether a minimization's end calls for a new jiggle: it gave up on a fold
+    (``ABANDONED``) or did not converge and is :func:`_tangled`."""
+    return not result.success and (result.message.startswith(ABANDONED)
+                                   or _tangled(ctx, result.fun, V_target, X_start))
+
+
 FOLD_RINGS = 5
 """Intersecting faces whose vertices are at most this many edges apart on the mesh are a fold
 (:func:`only_local`)."""
@@ -470,9 +477,7 @@ def step(ctx: Context, state: State):
         # a minimization that gave up on a fold or a tangle is jiggled again at once; one that
         # stopped without converging otherwise (it stalled on soft modes) goes through the
         # cycle, which often converges it
-        again = (not result.success and attempt < retries
-                 and (result.message.startswith(ABANDONED)
-                      or _tangled(ctx, result.fun, V_target, state.X)))
+        again = attempt < retries and _start_again(ctx, result, V_target, state.X)
         if p.c0_cycle and not again:
             # the flat minimum is a waypoint (neither reported nor kept): not certified
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
@@ -489,10 +494,10 @@ def step(ctx: Context, state: State):
             result = _minimize(ctx, ctx.energy, start, V_target, pressure, relaxed=flat.x,
                                warm=(result, flat))
             iterations += flat.nit + result.nit
+            again = attempt < retries and _start_again(ctx, result, V_target, state.X)
         if attempt == retries:
             break
-        if not result.success and (result.message.startswith(ABANDONED)
-                                   or _tangled(ctx, result.fun, V_target, state.X)):
+        if again:
             why = f"no convergence ({result.message}; E = {result.fun:.6g})"
         else:
             contact = ctx.contact.check(result.x)
