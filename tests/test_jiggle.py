@@ -76,7 +76,10 @@ def test_protocol_jiggle_options():
     assert default.direct_return and not Protocol.from_dict(old).direct_return
 
 
-def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(monkeypatch):
+def _first_step_with_first_minimization_changed(monkeypatch, **changes):
+    """Step 1 of a small deflation (icosphere 3, gamma 271, c0 cycle, seed 4) whose first
+    minimization returns its result with the fields ``changes``; ``(mesh, params, protocol,
+    state, record, calls)`` with the keyword arguments of every minimization in ``calls``."""
     import dataclasses
 
     import shellbuckle.protocol.deflate as deflate
@@ -88,23 +91,31 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     ctx, state = deflate.init(mesh, params, protocol)
     minimize, calls = deflate._minimize, []
 
-    def first_fails(*args, **kwargs):  # the first minimization ends unconverged and tangled
+    def first_changed(*args, **kwargs):
         result = minimize(*args, **kwargs)
-        calls.append(result.success)
-        if len(calls) == 1:
-            return dataclasses.replace(result, success=False, fun=1e6)
-        return result
+        calls.append(kwargs)
+        return dataclasses.replace(result, **changes) if len(calls) == 1 else result
 
-    monkeypatch.setattr(deflate, "_minimize", first_fails)
+    monkeypatch.setattr(deflate, "_minimize", first_changed)
     state, record = deflate.step(ctx, state)
+    monkeypatch.setattr(deflate, "_minimize", minimize)
+    return mesh, params, protocol, state, record, calls
+
+
+def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(monkeypatch):
+    from shellbuckle.protocol.deflate import _minimize as minimize
+    from shellbuckle.protocol.deflate import init
+
+    # the first minimization ends unconverged and tangled
+    mesh, params, protocol, state, record, calls = \
+        _first_step_with_first_minimization_changed(monkeypatch, success=False, fun=1e6)
     sigma0 = protocol.jiggle_sigma(mesh.X, mesh.X, mesh.topology.edges)
     assert record["jiggle_attempts"] == 2 and record["converged"]
     assert record["jiggle_sigma"] == pytest.approx(sigma0 / 2)
     assert len(calls) == 4  # the failed attempt skips the c0 cycle; the retry runs it
     # the retry starts again from the step's start, not from the failed attempt
-    monkeypatch.setattr(deflate, "_minimize", minimize)
     again = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
-    ctx2, s2 = deflate.init(mesh, params, again)
+    ctx2, s2 = init(mesh, params, again)
     rng = np.random.default_rng([4, 1, 1])
     X = jiggle(s2.X, sigma0 / 2, rng)
     V = ctx2.V0 * (1 - 0.019)
@@ -119,27 +130,10 @@ def test_a_stalled_minimization_goes_through_the_c0_cycle(monkeypatch):
     # on soft modes: gamma = 20995, dV/V = 0.608, residual 6e-5), is the step's last attempt;
     # the cycle then starts from it and converges the step, as the paper's protocol cycles
     # after every minimization (before, the step ended unconverged there, without the cycle)
-    import dataclasses
-
-    import shellbuckle.protocol.deflate as deflate
-    from shellbuckle.params import ShellParameters
-
-    mesh = icosphere(3)
-    params = ShellParameters.from_gamma(271.0, nu=1.0 / 3.0)
-    protocol = Protocol(schedule=(0.019,), c0_cycle=True, seed=4)
-    ctx, state = deflate.init(mesh, params, protocol)
-    minimize, calls = deflate._minimize, []
-
-    def first_stalls(*args, **kwargs):
-        result = minimize(*args, **kwargs)
-        calls.append(kwargs.get("warm") is None)
-        if len(calls) == 1:  # at its own (low) energy: not tangled
-            return dataclasses.replace(result, success=False, message="stalled: (a test)")
-        return result
-
-    monkeypatch.setattr(deflate, "_minimize", first_stalls)
-    _, record = deflate.step(ctx, state)
-    assert calls == [True, False, False]  # the minimization, then the two of the cycle
+    *_, record, calls = _first_step_with_first_minimization_changed(  # at its own (low)
+        monkeypatch, success=False, message="stalled: (a test)")  # energy: not tangled
+    # the minimization, then the two of the cycle (which start from the previous ones)
+    assert [c.get("warm") is None for c in calls] == [True, False, False]
     assert record["jiggle_attempts"] == 1 and record["converged"] and record["inertia"] == 0
 
 

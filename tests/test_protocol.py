@@ -196,7 +196,8 @@ def test_the_direct_return_of_the_c0_cycle_ends_where_the_full_return_does():
         X_direct, r_direct = step(ctx_direct, state)
         assert r_full["converged"] and r_direct["converged"]
         assert r_full["inertia"] == 0 and r_direct["inertia"] == 0
-        assert r_direct["E_before_c0_cycle"] == r_full["E_before_c0_cycle"]  # the same first minimization
+        # the same first minimization, and the return ends exactly at its minimum
+        assert r_direct["E_before_c0_cycle"] == r_full["E_before_c0_cycle"]
         assert r_direct["E_total"] == pytest.approx(r_direct["E_before_c0_cycle"], rel=1e-13)
         assert r_direct["E_total"] == pytest.approx(r_full["E_total"], rel=1e-10)
         assert r_direct["pressure"] == pytest.approx(r_full["pressure"], rel=1e-6)
