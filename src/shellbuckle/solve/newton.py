@@ -53,9 +53,11 @@ the shifted step is a descent step. (2) After buckling the shell has a few very 
 from quadratic, and undamped Newton steps overshoot. ``mu`` is therefore adapted as in a
 trust-region / Levenberg–Marquardt method by the ratio ``rho`` of the actual to the predicted
 decrease (quadratic model with the unshifted ``K``): divided by 4 after a good step
-(``rho > 0.75``), and set after a step cut to ``alpha`` by the line search (or stretched to
-``alpha > 1``: a damped step whose model was good is doubled while the energy falls) to the
-shift that would have given that length along the step's direction; a shift below ``1e-3``
+(``rho > 0.75``, or a full step whose predicted decrease is below the energy's evaluation
+noise, near a minimum), and set after a step cut to ``alpha`` by the line search (or
+stretched to ``alpha > 1``: a damped step whose model was good is doubled while the energy
+falls) to the shift that would have given that length along the step's direction; a shift
+below ``1e-3``
 of the curvature along the step is dropped. While ``mu > 0`` the unshifted matrix is not
 factored (no wasted factorization per iteration); it is factored again when ``mu`` drops to
 0, when the gradient has converged, and at the last iteration, so the reported inertia is
@@ -950,10 +952,17 @@ def _damping_next(mu: float, curv_s: float, kind: str, alpha: float, rho: float)
     was good, see :func:`_line_search`), sets the shift that would have given that length
     along the step's own direction; otherwise a good model (``rho > 0.75``) divides the shift
     by 4 and a poor one (``rho < 0.25``) doubles the step's shifted curvature. A shift below
-    ``1e-3`` times the curvature along the step is dropped (pure Newton).
+    ``1e-3`` times the curvature along the step is dropped (pure Newton). A full step whose
+    predicted decrease is below the energy's noise (``rho`` NaN: near a minimum, where the
+    model is good) divides the shift by 4 too; left there, the shift kept the tail of a
+    minimization converging linearly.
     """
-    if kind != "newton" or not np.isfinite(rho):
+    if kind != "newton":
         return mu
+    if not np.isfinite(rho):
+        if alpha != 1.0:
+            return mu
+        rho = 1.0
     if alpha != 1.0:
         mu = _damping_after(mu, curv_s, alpha)
     elif rho > 0.75:
