@@ -279,3 +279,48 @@ def test_a_minimization_abandoned_on_a_fold_is_jiggled_again(monkeypatch):
     monkeypatch.setattr(deflate, "_minimize", first_abandoned)
     _, record = deflate.step(ctx, state)
     assert record["jiggle_attempts"] == 2 and record["converged"] and len(calls) == 4
+
+
+def _vertex_pushed_through_a_nearby_face(mesh, lift=0.2):
+    """``mesh.X`` with vertex 0 moved just outside a face two rings away: its star then passes
+    through the surface there (a fold of the mesh, as a jiggle can leave)."""
+    X, F = mesh.X.copy(), np.asarray(mesh.faces)
+    edge = np.linalg.norm(X[F[:, 0]] - X[F[:, 1]], axis=1).mean()
+    ring = set(F[(F == 0).any(axis=1)].ravel())
+    ring2 = set(F[[bool(set(f) & ring) for f in F]].ravel())
+    f = next(i for i, face in enumerate(F) if not set(face) & ring and len(set(face) & ring2) >= 2)
+    c = X[F[f]].mean(axis=0)
+    X[0] = c + lift * edge * c / np.linalg.norm(c)
+    return X
+
+
+def test_a_local_self_intersection_is_a_fold_and_a_distant_one_is_not():
+    # oracle: the exact triangle-triangle test (the surface crosses itself near vertex 0 only)
+    # and the distance on the mesh of the crossing faces
+    from shellbuckle.mesh.contact import ContactChecker
+    from shellbuckle.protocol.deflate import FOLD_RINGS, folded_locally
+
+    mesh = icosphere(6)
+    checker = ContactChecker(mesh.topology)
+    assert folded_locally(checker, mesh.X) is None
+    folded = _vertex_pushed_through_a_nearby_face(mesh)
+    pairs, n = checker.intersecting_pairs(folded)
+    assert n > 0 and (checker.face_distance(pairs[:, 0], pairs[:, 1], FOLD_RINGS) <= 2).all()
+    reason = folded_locally(checker, folded)
+    assert reason is not None and f"faces {pairs[0, 0]} and {pairs[0, 1]} intersect" in reason
+    spiked = mesh.X.copy()
+    spiked[0] = -1.5 * mesh.X[0]  # through the far side of the shell: a contact, not a fold
+    assert checker.intersecting_pairs(spiked)[1] > 0
+    assert folded_locally(checker, spiked) is None
+
+
+def test_a_stalled_minimization_left_in_a_fold_is_jiggled_again_without_the_cycle(monkeypatch):
+    # the same stalled first minimization as in the test above, but ending where the surface
+    # passes through itself locally: jiggled again at once, the cycle only after the retry
+    mesh = icosphere(3)
+    folded = _vertex_pushed_through_a_nearby_face(mesh)
+    *_, record, calls = _first_step_with_first_minimization_changed(
+        monkeypatch, success=False, message="stalled: (a test)", x=folded)
+    assert record["jiggle_attempts"] == 2 and record["converged"] and record["inertia"] == 0
+    assert len(calls) == 4  # the stalled attempt, then the retry's minimization and cycle
+    assert [c.get("warm") is None for c in calls] == [True, True, False, False]

@@ -677,3 +677,36 @@ def test_levenberg_marquardt_shift_follows_the_model_of_the_step():
     # a cut step says nothing about the model there
     assert _damping_next(mu, q, "newton", 1.0, np.nan) == pytest.approx(mu / 4)
     assert _damping_next(mu, q, "newton", 0.5, np.nan) == mu
+
+
+def test_abandon_stuck_is_asked_only_where_newton_steps_make_no_progress(monkeypatch):
+    # oracles: the minimization without the hook (a run whose steps all progress never asks
+    # it), and, with the progress test made to report a jam after the second Newton step, the
+    # point the hook is shown is the one the minimization stops at with the hook's reason
+    import importlib
+
+    from shellbuckle.solve.newton import ABANDONED
+
+    newton_module = importlib.import_module("shellbuckle.solve.newton")  # not the function
+    mesh, energy, volume, V0 = shell(3, 1000)
+    X0 = 0.95 ** (1 / 3) * mesh.X + 0.01 * np.random.default_rng(5).standard_normal(mesh.X.shape)
+    asked = []
+
+    def hook(reason):
+        return lambda X: asked.append(X.copy()) or reason
+
+    ref = newton(energy, volume, X0, 0.95 * V0)
+    res = newton(energy, volume, X0, 0.95 * V0, abandon_stuck=hook(None))
+    assert ref.success and np.array_equal(res.x, ref.x) and res.nit == ref.nit and not asked
+    jammed = newton_module._jammed
+
+    def jam_after_two(trail, tol_energy, steps=newton_module.JAM_STEPS):
+        if steps == newton_module.SINGLE_JAM_STEPS:
+            return len(trail) >= 2
+        return jammed(trail, tol_energy, steps)
+
+    monkeypatch.setattr(newton_module, "_jammed", jam_after_two)
+    stop = newton(energy, volume, X0, 0.95 * V0, abandon_stuck=hook("stuck"))
+    assert not stop.success and stop.message == f"{ABANDONED}: stuck"
+    assert len(asked) == 1 and np.array_equal(asked[0], stop.x)
+    assert stop.fun == energy.value(stop.x) < energy.value(X0)

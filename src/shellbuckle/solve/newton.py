@@ -562,7 +562,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            seed: int = 0, history: bool = False, precondition_at: np.ndarray | None = None,
            relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
            relax_rough_shift: float = RELAX_ROUGH_SHIFT, single_precision_steps: bool = True,
-           abandon=None, warm_start=None, certify: bool = True) -> MinimizeResult:
+           abandon=None, abandon_stuck=None, warm_start=None,
+           certify: bool = True) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
     Parameters
@@ -641,6 +642,13 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         (``success = False``, message ``"abandoned: <reason>"``). The deflation protocol
         gives up at once on a triangle folded onto its neighbour, where the energy is not
         differentiable and no minimizer makes progress (it jiggles again instead).
+    abandon_stuck : callable, optional
+        Like ``abandon`` (default: ``abandon``), a test that may cost more, asked only where the
+        steps are stuck: after ``RELAX_ASK_STEPS`` relaxation steps in a row cut below
+        ``RELAX_ASK_ALPHA`` of their length (and after every further such step), and after
+        every Newton step that ends ``SINGLE_JAM_STEPS`` Newton steps without progress
+        (:func:`_jammed`). The protocol looks there for a surface that passes through itself
+        near a vertex the jiggle pushed through a face (~7 ms on the paper's mesh).
     warm_start : object, optional
         ``result.factorization`` of the minimization that ended at ``X0`` (same mesh, solver
         and gauge, other parameters): the first steps reuse the factorization the solver still
@@ -683,7 +691,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
-                                    history, abandon)
+                                    history, abandon_stuck or abandon)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     if warm and nt.token.certifies(nt.raw_energy, V_target):
@@ -784,8 +792,17 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             k += 1
             ask = abandon is not None
             newton_trail.append((E_new, r_norm))
-            if single_ok and _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
+            if _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
                 single_ok = False  # inexact steps along the softest modes
+                reason = (abandon_stuck(X_new) if abandon_stuck is not None and not grad_ok
+                          else None)
+                if reason:
+                    X, E = X_new, E_new
+                    lam, r, gE, gV = nt.gradients(X)
+                    r_norm = float(np.linalg.norm(r))
+                    message = f"{ABANDONED}: {reason}"
+                    nit += 1
+                    break
             if not grad_ok and _jammed(newton_trail, tol_energy):
                 X, E = X_new, E_new
                 lam, r, gE, gV = nt.gradients(X)
