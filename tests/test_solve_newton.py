@@ -679,10 +679,12 @@ def test_levenberg_marquardt_shift_follows_the_model_of_the_step():
     assert _damping_next(mu, q, "newton", 0.5, np.nan) == mu
 
 
-def test_abandon_stuck_is_asked_only_where_newton_steps_make_no_progress(monkeypatch):
-    # oracles: the minimization without the hook (a run whose steps all progress never asks
-    # it), and, with the progress test made to report a jam after the second Newton step, the
-    # point the hook is shown is the one the minimization stops at with the hook's reason
+def test_the_thorough_abandon_test_is_asked_after_the_relaxation_and_where_steps_stall(
+        monkeypatch):
+    # oracles: the minimization without the hook (a run whose steps all progress asks it only
+    # after its relaxation, in place of the cheap test), and, with the progress test made to
+    # report a jam after the second Newton step, the point the hook is shown is the one the
+    # minimization stops at with the hook's reason
     import importlib
 
     from shellbuckle.solve.newton import ABANDONED
@@ -696,8 +698,17 @@ def test_abandon_stuck_is_asked_only_where_newton_steps_make_no_progress(monkeyp
         return lambda X: asked.append(X.copy()) or reason
 
     ref = newton(energy, volume, X0, 0.95 * V0)
-    res = newton(energy, volume, X0, 0.95 * V0, abandon_stuck=hook(None))
+    res = newton(energy, volume, X0, 0.95 * V0, abandon_thorough=hook(None))
     assert ref.success and np.array_equal(res.x, ref.x) and res.nit == ref.nit and not asked
+    shrunk = 0.95 ** (1 / 3) * mesh.X
+    cheap = []
+    relaxed = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                     abandon=lambda X: cheap.append(X.copy()), abandon_thorough=hook(None))
+    n_relax = sum(h["step"] == "relax" for h in relaxed.history)
+    n_newton = sum(h["step"] == "newton" for h in relaxed.history)
+    assert relaxed.success and n_relax > 0 and len(asked) == 1 and len(cheap) <= n_newton
+    assert not any(np.array_equal(asked[0], X) for X in cheap)
+    asked.clear()
     jammed = newton_module._jammed
 
     def jam_after_two(trail, tol_energy, steps=newton_module.JAM_STEPS):
@@ -706,7 +717,7 @@ def test_abandon_stuck_is_asked_only_where_newton_steps_make_no_progress(monkeyp
         return jammed(trail, tol_energy, steps)
 
     monkeypatch.setattr(newton_module, "_jammed", jam_after_two)
-    stop = newton(energy, volume, X0, 0.95 * V0, abandon_stuck=hook("stuck"))
+    stop = newton(energy, volume, X0, 0.95 * V0, abandon_thorough=hook("stuck"))
     assert not stop.success and stop.message == f"{ABANDONED}: stuck"
     assert len(asked) == 1 and np.array_equal(asked[0], stop.x)
     assert stop.fun == energy.value(stop.x) < energy.value(X0)

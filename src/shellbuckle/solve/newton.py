@@ -562,7 +562,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            seed: int = 0, history: bool = False, precondition_at: np.ndarray | None = None,
            relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
            relax_rough_shift: float = RELAX_ROUGH_SHIFT, single_precision_steps: bool = True,
-           abandon=None, abandon_stuck=None, warm_start=None,
+           abandon=None, abandon_thorough=None, warm_start=None,
            certify: bool = True) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
@@ -642,13 +642,14 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         (``success = False``, message ``"abandoned: <reason>"``). The deflation protocol
         gives up at once on a triangle folded onto its neighbour, where the energy is not
         differentiable and no minimizer makes progress (it jiggles again instead).
-    abandon_stuck : callable, optional
-        Like ``abandon`` (default: ``abandon``), a test that may cost more, asked only where the
-        steps are stuck: after ``RELAX_ASK_STEPS`` relaxation steps in a row cut below
-        ``RELAX_ASK_ALPHA`` of their length (and after every further such step), and after
-        every Newton step that ends ``SINGLE_JAM_STEPS`` Newton steps without progress
-        (:func:`_jammed`). The protocol looks there for a surface that passes through itself
-        near a vertex the jiggle pushed through a face (~7 ms on the paper's mesh).
+    abandon_thorough : callable, optional
+        Like ``abandon`` (default: ``abandon``), a test that may cost more, asked in its place
+        at a few points only: after the relaxation, after ``RELAX_ASK_STEPS`` relaxation steps
+        in a row cut below ``RELAX_ASK_ALPHA`` of their length (and after every further such
+        step), and after every Newton step that ends ``SINGLE_JAM_STEPS`` Newton steps
+        without progress (:func:`_jammed`). The protocol also looks there for a surface that
+        passes through itself near a vertex the jiggle pushed through a face (~7 ms on the
+        paper's mesh).
     warm_start : object, optional
         ``result.factorization`` of the minimization that ended at ``X0`` (same mesh, solver
         and gauge, other parameters): the first steps reuse the factorization the solver still
@@ -686,12 +687,13 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     want_inertia = certify and (compute_inertia or escape_saddles)
     E = nt.value(X)
     dE, mu, nit, records = None, 0.0, 0, []
+    thorough = abandon_thorough or abandon  # the costlier test, asked where it pays
     nt.token = next((t for t in tokens if _warm_ok(t, nt)), None)
     warm = nt.token is not None
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
-                                    history, abandon_stuck or abandon)
+                                    history, thorough)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     if warm and nt.token.certifies(nt.raw_energy, V_target):
@@ -702,7 +704,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
     single_ok = single_precision_steps and escape_saddles  # (module docstring)
-    ask = abandon is not None and precondition_at is not None and not warm  # ask at this point
+    # asked after the relaxation (the thorough test) and after every Newton step
+    ask = thorough is not None and precondition_at is not None and not warm
+    ask_thorough = ask
     while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
@@ -717,8 +721,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 success, message = True, "converged"
                 inertia = 0 if want_inertia else None
                 break
-            reason = abandon(X) if ask and not converged else None
-            ask = False
+            test = thorough if ask_thorough else abandon
+            reason = test(X) if ask and test is not None and not converged else None
+            ask = ask_thorough = False
             if reason:
                 message = f"{ABANDONED}: {reason}"
                 break
@@ -794,8 +799,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             newton_trail.append((E_new, r_norm))
             if _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
                 single_ok = False  # inexact steps along the softest modes
-                reason = (abandon_stuck(X_new) if abandon_stuck is not None and not grad_ok
-                          else None)
+                reason = thorough(X_new) if thorough is not None and not grad_ok else None
                 if reason:
                     X, E = X_new, E_new
                     lam, r, gE, gV = nt.gradients(X)
