@@ -57,11 +57,10 @@ decrease (quadratic model with the unshifted ``K``): divided by 4 after a good s
 noise, near a minimum), and set after a step cut to ``alpha`` by the line search (or
 stretched to ``alpha > 1``: a damped step whose model was good is doubled while the energy
 falls) to the shift that would have given that length along the step's direction; a shift
-below ``1e-3``
-of the curvature along the step is dropped. While ``mu > 0`` the unshifted matrix is not
-factored (no wasted factorization per iteration); it is factored again when ``mu`` drops to
-0, when the gradient has converged, and at the last iteration, so the reported inertia is
-always that of the unshifted tangent Hessian.
+below ``1e-3`` of the curvature along the step is dropped. While ``mu > 0`` the unshifted
+matrix is not factored (no wasted factorization per iteration); it is factored again when
+``mu`` drops to 0, when the gradient has converged, and at the last iteration, so the
+reported inertia is always that of the unshifted tangent Hessian.
 
 At a stationary point with negative curvature (a saddle, e.g. the perfectly symmetric shrunk
 sphere past its buckling threshold) or when a shifted step fails, a few inverse-iteration
@@ -797,22 +796,19 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             k += 1
             ask = abandon is not None
             newton_trail.append((E_new, r_norm))
+            stop = None
             if _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
                 single_ok = False  # inexact steps along the softest modes
                 reason = thorough(X_new) if thorough is not None and not grad_ok else None
-                if reason:
-                    X, E = X_new, E_new
-                    lam, r, gE, gV = nt.gradients(X)
-                    r_norm = float(np.linalg.norm(r))
-                    message = f"{ABANDONED}: {reason}"
-                    nit += 1
-                    break
-            if not grad_ok and _jammed(newton_trail, tol_energy):
+                stop = f"{ABANDONED}: {reason}" if reason else None
+            if stop is None and not grad_ok and _jammed(newton_trail, tol_energy):
+                stop = (f"stalled: {JAM_STEPS} Newton steps lowered the energy by less than "
+                        f"{tol_energy:g} relative and the gradient by less than half")
+            if stop is not None:
                 X, E = X_new, E_new
                 lam, r, gE, gV = nt.gradients(X)
                 r_norm = float(np.linalg.norm(r))
-                message = (f"stalled: {JAM_STEPS} Newton steps lowered the energy by less than "
-                           f"{tol_energy:g} relative and the gradient by less than half")
+                message = stop
                 nit += 1
                 break
         log.debug("newton %3d  E=%.15g  |r|=%.3e  lam=%.9g  inertia=%s  mu=%.2e  %s alpha=%.3g "
