@@ -503,6 +503,11 @@ def test_a_relaxation_step_cut_short_asks_abandon_and_a_reason_stops_there(monke
     n_stop = first_ask + 2  # asked after steps first_ask, first_ask + 1, first_ask + 2
     assert [h["step"] for h in res.history] == ["relax"] * n_stop
     assert res.fun == pytest.approx(ref.history[n_stop - 1]["energy"], rel=1e-12)
+    # a thorough test, when given, is the one asked there (the cheap one is not)
+    calls.clear()
+    thorough = newton(energy, volume, X0, 0.95 * V0, precondition_at=shrunk, history=True,
+                      abandon=lambda X: "must not be asked here", abandon_thorough=third)
+    assert thorough.message == f"{ABANDONED}: folded" and np.array_equal(thorough.x, res.x)
 
 
 @pytest.mark.parametrize("bending", ["juelicher", "evolver"])
