@@ -460,8 +460,9 @@ def folded_locally(checker: ContactChecker, X: np.ndarray,
     a few rings away. The minimizer's steps stall there without any hinge folded flat
     (gamma = 2333, dV/V = 0.70: 133 iterations and 37 factorizations, then the c0 cycle with
     25 more, before the contact check at the end of the step saw the fold). Costs a
-    self-intersection search (~7 ms on the paper's mesh), so Newton's method asks it only
-    after its relaxation and where its steps are stuck (``abandon_thorough``), and the
+    self-intersection search (~7 ms on a smooth shell of the paper's mesh), so Newton's
+    method asks it only after its relaxation and where its steps are stuck
+    (``abandon_thorough``), and the
     protocol of a minimization that stopped unconverged. In replays of every second step of
     whole runs (gamma = 271, 2333, 20995; 99 relaxations) it held after the relaxation in
     the three attempts that ended on a fold, and in no other."""

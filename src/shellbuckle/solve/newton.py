@@ -643,12 +643,13 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         differentiable and no minimizer makes progress (it jiggles again instead).
     abandon_thorough : callable, optional
         Like ``abandon`` (default: ``abandon``), a test that may cost more, asked in its place
-        at a few points only: after the relaxation, after ``RELAX_ASK_STEPS`` relaxation steps
-        in a row cut below ``RELAX_ASK_ALPHA`` of their length (and after every further such
-        step), and after every Newton step that ends ``SINGLE_JAM_STEPS`` Newton steps
+        at two kinds of points only, where the shell is smooth unless it is tangled: after the
+        relaxation, and after every Newton step that ends ``SINGLE_JAM_STEPS`` Newton steps
         without progress (:func:`_jammed`). The protocol also looks there for a surface that
         passes through itself near a vertex the jiggle pushed through a face (~7 ms on the
-        paper's mesh).
+        paper's mesh). Not during the relaxation: a freshly jiggled surface passes through
+        itself in many places (80 pairs of faces at the protocol's amplitude on the paper's
+        mesh) that the relaxation removes.
     warm_start : object, optional
         ``result.factorization`` of the minimization that ended at ``X0`` (same mesh, solver
         and gauge, other parameters): the first steps reuse the factorization the solver still
@@ -692,7 +693,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
-                                    history, thorough)
+                                    history, abandon)
     success, message, inertia, retries = False, "", None, 0
     fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
     if warm and nt.token.certifies(nt.raw_energy, V_target):
