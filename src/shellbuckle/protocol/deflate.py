@@ -462,10 +462,9 @@ def folded_locally(checker: ContactChecker, X: np.ndarray,
     25 more, before the contact check at the end of the step saw the fold). Costs a
     self-intersection search (~7 ms on a smooth shell of the paper's mesh), so Newton's
     method asks it only after its relaxation and where its steps are stuck
-    (``abandon_thorough``), and the
-    protocol of a minimization that stopped unconverged. In replays of every second step of
-    whole runs (gamma = 271, 2333, 20995; 99 relaxations) it held after the relaxation in
-    the three attempts that ended on a fold, and in no other."""
+    (``abandon_thorough``), and the protocol of a minimization that stopped unconverged. In
+    replays of every second step of whole runs (gamma = 271, 2333, 20995; 99 relaxations) it
+    held after the relaxation in the three attempts that ended on a fold, and in no other."""
     pairs, n = checker.intersecting_pairs(X)
     if not n or not _all_near(checker, pairs, rings):
         return None

@@ -704,9 +704,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
     single_ok = single_precision_steps and escape_saddles  # (module docstring)
-    # asked after the relaxation (the thorough test) and after every Newton step
-    ask = thorough is not None and precondition_at is not None and not warm
-    ask_thorough = ask
+    # the test to ask at the next point that has not converged: the thorough one after the
+    # relaxation, the cheap one after every Newton step
+    ask = thorough if precondition_at is not None and not warm else None
     while True:
         if need_gradient:
             lam, r, gE, gV = nt.gradients(X)
@@ -721,9 +721,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 success, message = True, "converged"
                 inertia = 0 if want_inertia else None
                 break
-            test = thorough if ask_thorough else abandon
-            reason = test(X) if ask and test is not None and not converged else None
-            ask = ask_thorough = False
+            reason = ask(X) if ask is not None and not converged else None
+            ask = None
             if reason:
                 message = f"{ABANDONED}: {reason}"
                 break
@@ -795,7 +794,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             kind, alpha, E_new, X_new, rho = found
             mu = _damping_next(mu, curv_s, kind, alpha, rho)
             k += 1
-            ask = abandon is not None
+            ask = abandon
             newton_trail.append((E_new, r_norm))
             stop = None
             if _jammed(newton_trail, tol_energy, SINGLE_JAM_STEPS):
