@@ -6,6 +6,7 @@ Run from the repository root:
     python benchmarks/bench_deflation.py --gamma 2333 --until 0.1 --steps   # quick, per-step rows
     python benchmarks/bench_deflation.py --gamma --large     # only the ~40k-vertex run
     python benchmarks/bench_deflation.py --gamma 2333 --threads 2   # PARDISO on two threads
+    python benchmarks/bench_deflation.py --gamma 20995 --seeds 0 1 2  # three jiggle seeds
 
 For each gamma (nu = 1/3) it runs the paper's protocol (Quilliet et al. 2008, §4.1: steps of
 dV = 0.019 V0, jiggle, Newton at fixed volume, the c0 -> 0 -> 2/R cycle, stop at the first
@@ -22,6 +23,12 @@ solves, line searches). ``--large`` adds a run on a ~40k-vertex mesh with a few 
 ``shellbuckle deflate`` drives it, without the run store (which adds one small HDF5 write per
 step). Everything runs on one thread (the issue's measure) unless ``--threads N`` gives the
 sparse factorization N threads (the results are the same bits; NumPy's BLAS stays on one).
+
+After buckling, where the shell goes (which dent, which wrinkle pattern, how far it deflates
+before its walls touch) depends on the jiggle, so the time of a whole run is a random variable.
+``--seeds S ...`` runs every gamma once per jiggle seed on the same mesh
+(``random_sphere(vertices, --seed)``) and ends with one line per gamma: the smallest, median
+and largest total wall time and number of steps, and how many runs took at most 60 s.
 """
 
 from __future__ import annotations
@@ -74,9 +81,14 @@ def _threads_text(threads: int) -> str:
     return f"sparse factorization on {threads} threads (the rest on one)"
 
 
+TARGET_S = 60.0
+"""The issue's target for one whole run (wall seconds, one core)."""
+
+
 def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step: bool,
             jiggle: float | None = None, prerelax: bool = True, direct_return: bool = True,
             threads: int = 1) -> dict:
+    """One whole run; ``seed`` is the jiggle's seed (the mesh is given)."""
     params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
     protocol = Protocol.paper(dv=dv, until=until, seed=seed, jiggle=jiggle, prerelax=prerelax,
                               direct_return=direct_return)
@@ -102,7 +114,8 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
     pressures = np.array([r["pressure"] for r in records])
     drops = np.flatnonzero(np.diff(pressures) < 0)
     its = np.array([r["iterations"] for r in records])
-    return dict(gamma=gamma, vertices=mesh.n_vertices, steps=len(records), total=total, cpu=cpu,
+    return dict(gamma=gamma, seed=seed, vertices=mesh.n_vertices, steps=len(records),
+                total=total, cpu=cpu,
                 init=t_init, factor=ctx.solver.n_factor / len(records),
                 per_step=(total - t_init) / len(records), it_mean=its.mean(),
                 it_max=its.max(),
@@ -112,7 +125,8 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
                 timings={k: recorder.timings.get(k, 0.0) for k in TIMING_KEYS})
 
 
-HEADER = (f"{'gamma':>7} {'vertices':>8} {'steps':>5} {'total s':>8} {'cpu s':>7} {'s/step':>7} "
+HEADER = (f"{'gamma':>7} {'seed':>4} {'vertices':>8} {'steps':>5} {'total s':>8} {'cpu s':>7} "
+          f"{'s/step':>7} "
           f"{'it mean':>7} {'it max':>6} {'fact':>5} {'dV/V buckle':>11} {'dV/V stop':>9} "
           f"{'unconv':>6}  assembly/factor/solve/linesearch s")
 
@@ -120,10 +134,30 @@ HEADER = (f"{'gamma':>7} {'vertices':>8} {'steps':>5} {'total s':>8} {'cpu s':>7
 def _row(r: dict) -> str:
     t = r["timings"]
     split = "/".join(f"{t[k]:.1f}" for k in TIMING_KEYS)
-    return (f"{r['gamma']:7g} {r['vertices']:8d} {r['steps']:5d} {r['total']:8.1f} {r['cpu']:7.1f} "
+    return (f"{r['gamma']:7g} {r['seed']:4d} {r['vertices']:8d} {r['steps']:5d} "
+            f"{r['total']:8.1f} {r['cpu']:7.1f} "
             f"{r['per_step']:7.2f} {r['it_mean']:7.1f} {r['it_max']:6d} {r['factor']:5.1f} "
             f"{r['buckle']:11.3f} "
             f"{r['last']:9.3f} {r['unconverged']:6d}  {split}")
+
+
+def seed_summary(rows: list) -> list:
+    """One line per (gamma, vertices) run with more than one seed: the spread of the whole-run
+    wall time and of the number of steps, and the runs within ``TARGET_S``."""
+    groups = defaultdict(list)
+    for r in rows:
+        groups[(r["gamma"], r["vertices"])].append(r)
+    lines = []
+    for (gamma, n), group in groups.items():
+        if len(group) < 2:
+            continue
+        total = np.array([r["total"] for r in group])
+        steps = np.array([r["steps"] for r in group])
+        lines.append(f"gamma={gamma:g}, {n} vertices, {len(group)} seeds: total wall s "
+                     f"min/median/max {total.min():.1f}/{np.median(total):.1f}/{total.max():.1f}"
+                     f", steps {steps.min()}/{np.median(steps):g}/{steps.max()}, "
+                     f"{int(np.sum(total <= TARGET_S))} of {len(group)} within {TARGET_S:g} s")
+    return lines
 
 
 def main(argv=None) -> None:
@@ -135,6 +169,8 @@ def main(argv=None) -> None:
                         help="last target dV/V (default 0.95: run to self-contact)")
     parser.add_argument("--dv", type=float, default=0.019, help="volume step / V0 (default 0.019)")
     parser.add_argument("--seed", type=int, default=0, help="mesh and jiggle seed (default 0)")
+    parser.add_argument("--seeds", type=int, nargs="+",
+                        help="jiggle seeds: one run per seed and gamma on the --seed mesh")
     parser.add_argument("--no-prerelax", action="store_true",
                         help="Newton from the jiggled state at once, without the preconditioned "
                              "relaxation (the solver before it existed)")
@@ -156,27 +192,31 @@ def main(argv=None) -> None:
 
     print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
           f"{platform.machine()}, {_threads_text(args.threads)}, load average {os.getloadavg()[0]:.2f}")
-    jobs = [(args.vertices, g, args.until) for g in args.gamma]
+    seeds = args.seeds or [args.seed]
+    jobs = [(args.vertices, g, args.until, s) for g in args.gamma for s in seeds]
     if args.large:
-        jobs.append((args.large_vertices, args.large_gamma, args.large_until))
+        jobs.append((args.large_vertices, args.large_gamma, args.large_until, args.seed))
     meshes = {}
     rows = []
-    for n, gamma, until in jobs:
+    for n, gamma, until, seed in jobs:
         if n not in meshes:
             t = time.perf_counter()
             meshes[n] = random_sphere(n, seed=args.seed)
             print(f"random_sphere({n}, seed={args.seed}) built in {time.perf_counter() - t:.1f} s "
                   "(not counted)", flush=True)
-        r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=args.seed,
+        r = run_one(meshes[n], gamma, dv=args.dv, until=until, seed=seed,
                     per_step=args.steps, jiggle=args.jiggle, prerelax=not args.no_prerelax,
                     direct_return=not args.no_direct_return, threads=args.threads)
         rows.append(r)
-        print(f"  gamma={gamma:g}, {n} vertices: {r['stopped']}; {r['total']:.1f} s wall, "
+        print(f"  gamma={gamma:g}, {n} vertices, seed {seed}: {r['stopped']}; "
+              f"{r['total']:.1f} s wall, "
               f"{r['cpu']:.1f} s CPU (init {r['init']:.1f} s)", flush=True)
     print()
     print(HEADER)
     for r in rows:
         print(_row(r))
+    for line in seed_summary(rows):
+        print(line)
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
 
 

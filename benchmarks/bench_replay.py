@@ -5,6 +5,7 @@ Run from the repository root:
     python benchmarks/bench_replay.py                        # gamma 271, 2333, 20995; 3594 vertices
     python benchmarks/bench_replay.py --gamma 2333 --every 4 # every 4th step only (quicker)
     python benchmarks/bench_replay.py --gamma 2333 --steps   # one line per step
+    python benchmarks/bench_replay.py --every 4 --option memory=32   # Newton's options changed
 
 Why: after buckling a trajectory depends on the code down to round-off, so two versions of the
 solver run different trajectories (another dent, another stop) and a whole run
@@ -21,6 +22,11 @@ replayed; CPU and wall seconds of the replays; CPU seconds per step; minimizer i
 factorizations (single and double precision) and linear solves per step; and ``same``, the
 fraction of steps whose replay ends at the stored minimum (energy within 1e-9 relative; after
 buckling a replay by another code may end at another pinning site of the dent).
+
+``--option KEY=VALUE`` (repeatable) passes a keyword argument of
+:func:`shellbuckle.solve.newton.newton` (``memory``, ``max_quasi``, ``relax_tol``, ...; the value
+is a Python literal) to every minimization of the replays, to measure a setting on the same
+work before changing its default. The trajectory itself is always made with the defaults.
 """
 
 from __future__ import annotations
@@ -31,7 +37,9 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUME
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import ast  # noqa: E402
 import dataclasses  # noqa: E402
+import inspect  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -44,6 +52,7 @@ from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol, State  # noqa: E402
 from shellbuckle.solve.linear import CountingSolver  # noqa: E402
+from shellbuckle.solve.newton import newton  # noqa: E402
 from shellbuckle.store.run import source_commit  # noqa: E402
 
 PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
@@ -75,7 +84,42 @@ def trajectory(path: Path, mesh, gamma: float, seed: int) -> dict:
     return out
 
 
-def replay(mesh, traj: dict, every: int, per_step: bool) -> dict:
+def parse_options(items) -> dict:
+    """``["memory=32", ...]`` as keyword arguments of :func:`newton`, checked against its
+    signature (a misspelt name is refused, not ignored)."""
+    allowed = [name for name, par in inspect.signature(newton).parameters.items()
+               if par.kind is inspect.Parameter.KEYWORD_ONLY]
+    options = {}
+    for item in items or ():
+        key, sep, text = item.partition("=")
+        if not sep or key not in allowed:
+            raise ValueError(f"--option {item!r}: expected KEY=VALUE with KEY one of "
+                             f"{', '.join(allowed)}")
+        try:
+            options[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            raise ValueError(f"--option {item!r}: the value {text!r} is not a Python literal "
+                             "(a number, True/False, None, a string in quotes)") from None
+    return options
+
+
+def _with_options(options: dict):
+    """The protocol's ``minimize`` with ``options`` added to every call."""
+    inner = protocol_mod.minimize
+
+    def minimize(*args, **kwargs):
+        return inner(*args, **{**kwargs, **options})
+
+    return minimize
+
+
+def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = None) -> dict:
+    if options:
+        saved, protocol_mod.minimize = protocol_mod.minimize, _with_options(options)
+        try:
+            return replay(mesh, traj, every, per_step)
+        finally:
+            protocol_mod.minimize = saved
     ctx, _ = _context(mesh, float(traj["gamma"]), int(traj["seed"]))
     counts = ctx.solver.counts
     steps = range(1, len(traj["X"]), every)
@@ -119,18 +163,28 @@ def main(argv=None) -> None:
                         help="folder of the stored trajectories (default benchmarks/trajectories)")
     parser.add_argument("--every", type=int, default=1, help="replay every k-th step only")
     parser.add_argument("--steps", action="store_true", help="print one line per step")
+    parser.add_argument("--option", action="append", metavar="KEY=VALUE",
+                        help="a keyword argument of Newton's method for the replays "
+                             "(repeatable; e.g. memory=32)")
     args = parser.parse_args(argv)
     if args.every < 1:
         parser.error(f"--every must be >= 1, got {args.every}")
+    try:
+        options = parse_options(args.option)
+    except ValueError as exc:
+        parser.error(str(exc))
     print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
           f"{platform.machine()}, one thread, shellbuckle {source_commit() or 'unknown'}, "
           f"load average {os.getloadavg()[0]:.2f}")
+    if options:
+        print("Newton's options for the replays: "
+              + ", ".join(f"{k}={v!r}" for k, v in options.items()))
     mesh = random_sphere(args.vertices, seed=args.seed)
     rows = []
     for gamma in args.gamma:
         path = args.states / f"g{gamma:g}_v{args.vertices}_s{args.seed}.npz"
         traj = trajectory(path, mesh, gamma, args.seed)
-        rows.append(replay(mesh, traj, args.every, args.steps))
+        rows.append(replay(mesh, traj, args.every, args.steps, options))
         print(f"  gamma={gamma:g}: {rows[-1]['steps']} steps replayed", flush=True)
     print()
     print(HEADER)
