@@ -21,7 +21,10 @@ Printed per gamma (one thread, mesh and trajectory construction not counted): st
 replayed; CPU and wall seconds of the replays; CPU seconds per step; minimizer iterations, KKT
 factorizations (single and double precision) and linear solves per step; and ``same``, the
 fraction of steps whose replay ends at the stored minimum (energy within 1e-9 relative; after
-buckling a replay by another code may end at another pinning site of the dent).
+buckling a replay by another code may end at another pinning site of the dent); and ``dE
+mean``, the mean of ``(E_replay - E_stored) / |E_stored|`` over the steps (in units of
+1e-3): where a variant ends at other minima, whether they lie systematically higher or lower
+(the wrinkled regime has many nearly degenerate ones).
 
 ``--option KEY=VALUE`` (repeatable) passes a keyword argument of
 :func:`shellbuckle.solve.newton.newton` (``memory``, ``max_quasi``, ``relax_tol``, ...; the value
@@ -124,7 +127,7 @@ def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = 
     counts = ctx.solver.counts
     steps = range(1, len(traj["X"]), every)
     wall = cpu = 0.0
-    its, same = [], []
+    its, same, rel = [], [], []
     for k in steps:
         t, c = time.perf_counter(), time.process_time()
         before = dict(counts)
@@ -133,6 +136,7 @@ def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = 
         wall, cpu = wall + dt, cpu + dc
         its.append(record["iterations"])
         same.append(abs(record["E_total"] - traj["E"][k]) <= 1e-9 * abs(traj["E"][k]))
+        rel.append((record["E_total"] - traj["E"][k]) / abs(traj["E"][k]))
         if per_step:
             d = {key: counts[key] - before[key] for key in counts}
             print(f"    step {k:3d}  E={record['E_total']:.12g}  stored {traj['E'][k]:.12g}  "
@@ -141,17 +145,18 @@ def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = 
     n = len(steps)
     return dict(gamma=float(traj["gamma"]), steps=n, cpu=cpu, wall=wall, per_step=cpu / n,
                 it=np.mean(its), double=counts["double"] / n, single=counts["single"] / n,
-                solves=counts["solve"] / n, same=np.mean(same), commit=str(traj["commit"]))
+                solves=counts["solve"] / n, same=np.mean(same), dE=np.mean(rel),
+                commit=str(traj["commit"]))
 
 
 HEADER = (f"{'gamma':>7} {'steps':>5} {'cpu s':>7} {'wall s':>7} {'s/step':>6} {'it':>6} "
-          f"{'fact d':>6} {'fact s':>6} {'solves':>6} {'same':>5}  trajectory made by")
+          f"{'fact d':>6} {'fact s':>6} {'solves':>6} {'same':>5} {'dE mean':>8}  trajectory made by")
 
 
 def _row(r: dict) -> str:
     return (f"{r['gamma']:7g} {r['steps']:5d} {r['cpu']:7.1f} {r['wall']:7.1f} "
             f"{r['per_step']:6.2f} {r['it']:6.1f} {r['double']:6.1f} {r['single']:6.1f} "
-            f"{r['solves']:6.1f} {r['same']:5.2f}  {r['commit'][:12]}")
+            f"{r['solves']:6.1f} {r['same']:5.2f} {1e3 * r['dE']:+8.3f}  {r['commit'][:12]}")
 
 
 def main(argv=None) -> None:
