@@ -110,9 +110,9 @@ paper's mesh (gamma = 2333, steps 2, 6 and 10 of the protocol, from the same sta
 minimization of a step then takes 3-8 factorizations instead of 30-60 and 2-3 s instead of
 6-9 s, and ends at the same minimum (energies equal to ten digits).
 
-The relaxation starts in a rough stage with a larger shift, ``1e-1 mean|diag K|``
-(``relax_rough_shift``), and factors again with ``1e-3`` once three consecutive steps were
-taken in full (or the energy test above holds). Right after the jiggle the forces are huge
+The relaxation starts in a rough stage with a larger shift (``relax_rough_shift``, at first
+``1e-1 mean|diag K|``, now ``mean|diag K|`` itself, see below), and factors again with
+``1e-3`` once three consecutive steps were taken in full (or the energy test above holds). Right after the jiggle the forces are huge
 (``|r|`` ~ 1e5-1e6 on the paper's mesh) and their small components along the soft modes,
 divided by the small shift, made the first directions 10-60 mean edge lengths long at the
 median vertex; the line search cut them to a few percent (the largest vertex move at the
@@ -133,6 +133,23 @@ protocol's jiggle is 0.76 edge lengths rms per vertex on the paper's mesh but 2.
 locked the tangled triangles in: every one of three steps folded (and was jiggled again),
 against none of two without the stage; capping its steps at 0.5 or 1 edge length did not
 help.
+
+With the rough shift ``1e-1 mean|diag K|`` the first 20-30 steps after the jiggle were still
+capped at ``max_step`` (gamma = 271, step 3: the direction moved the median vertex by 1-3
+mean edge lengths and the farthest by 20-80, against a jiggle of 0.76 rms, and every step
+was scaled to 2-20 % of its length): the Hessian of the relaxed state underestimates the
+stiffness of the stretched, jiggled mesh (Green-Lagrange strains stiffen), so shifted by a
+tenth of its diagonal it still made the steps 5-20 times too long. With the diagonal itself
+as shift the first steps are taken at 10-80 % of their length and the roughness is gone
+after 10-15 steps instead of about 30 (271, step 3: from 4500 times the minimum's energy to
+twice it in 20 steps instead of 37). Replays of every second step
+(``benchmarks/bench_replay.py --every 2 --option relax_rough_shift=...``, 1e-1 against 1):
+gamma = 271 161 -> 134 iterations and 9.1 -> 8.6 single-precision factorizations per step,
+10 % less CPU time; 20995 253 -> 217 and 10.4 -> 8.9, 14 % less; 2333 the same within 2 %
+(121 -> 117 iterations, 6.7 -> 6.9 factorizations). At 271 and 2333 every replayed step but
+one (of 20 and of 24) ends at the stored minimum, those two within 1e-5 relative of it; at
+20995 most end at other wrinkle patterns, on average 1e-3 relative below the stored energies
+(with 0.5: 2e-4 above, 9 % less CPU time).
 
 Single-precision steps
 ----------------------
@@ -236,8 +253,9 @@ log = logging.getLogger(__name__)
 
 RELAX_SHIFT = 1e-3
 """Shift of the preconditioner of the relaxation, relative to ``mean|diag K|``."""
-RELAX_ROUGH_SHIFT = 1e-1
-"""Shift of the relaxation's first (rough) stage, relative to ``mean|diag K|``."""
+RELAX_ROUGH_SHIFT = 1.0
+"""Shift of the relaxation's first (rough) stage, relative to ``mean|diag K|`` (module
+docstring, "Preconditioned relaxation"; it was 1e-1)."""
 RELAX_ROUGH_FULL = 3
 """Consecutive full steps after which the rough stage of the relaxation ends."""
 RELAX_ROUGH_MAX_MOVE = 1.5
