@@ -301,13 +301,16 @@ def test_rough_relaxation_stage_takes_full_steps_sooner():
     # oracles: the relaxation without the rough stage, KKT conditions and the dense inertia.
     # The rough stage (a larger shift first) damps the soft modes that made the first
     # directions far too long, so fewer steps are cut by the line search; it ends with one
-    # more (single-precision) factorization at the small shift, and the minimum is the same
+    # more (single-precision) factorization at the small shift, and the minimum is the same.
+    # Without the self-scaling of the later steps, which also lengthens the cut ones
+    from shellbuckle.solve.newton import RELAX_ROUGH_SHIFT
+
     mesh, energy, volume, V, shrunk, X0 = _jiggled_shell()
     runs = {}
-    for rough in (0.0, 1e-1):
+    for rough in (0.0, RELAX_ROUGH_SHIFT):
         solver = CountingSolver(make_solver())
         res = newton(energy, volume, X0, V, precondition_at=shrunk, history=True, solver=solver,
-                     relax_rough_shift=rough, max_iter=300)
+                     relax_rough_shift=rough, max_iter=300, relax_scaling=False)
         relax = [h for h in res.history if h["step"] == "relax"]
         runs[rough] = (res, relax, solver.counts["single"])
     (plain, relax_plain, single_plain), (rough, relax_rough, single_rough) = runs.values()
@@ -320,6 +323,38 @@ def test_rough_relaxation_stage_takes_full_steps_sooner():
     assert cut[1] < cut[0]
     assert single_rough == single_plain + 1
     energies = [h["energy"] for h in relax_rough]
+    assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(energies, energies[1:]))
+
+
+def test_the_relaxation_scale_is_the_parabola_minimizer_along_the_step():
+    # oracle: an exact parabola E(a) = E0 + g a + c a^2 / 2 has its minimum at -g / c; the
+    # scale is multiplied by it, clipped to [0.1, 2] per step and kept within [1e-3, 1]
+    from shellbuckle.solve.newton import _rescaled
+
+    E0, g = 3.0, -2.0
+    for c, alpha, tau in ((8.0, 0.25, 1.0), (8.0, 1.0, 0.5), (2.5, 1.0, 0.4)):
+        E1 = E0 + g * alpha + 0.5 * c * alpha ** 2
+        assert _rescaled(tau, E0, E1, g, alpha) == pytest.approx(tau * -g / c, rel=1e-12)
+    assert _rescaled(0.4, E0, E0 + g + 0.5 * 0.1, g, 1.0) == pytest.approx(0.8)  # x2 at most
+    assert _rescaled(0.5, E0, E0 + g + 0.5 * 1e3, g, 1.0) == pytest.approx(0.05)  # x0.1
+    assert _rescaled(1.0, E0, E0 + g + 0.5 * 1.0, g, 1.0) == 1.0  # never above 1
+    assert _rescaled(1e-3, E0, E0 + g + 0.5 * 1e3, g, 1.0) == 1e-3
+    assert _rescaled(0.3, E0, E0 + 2 * g, g, 1.0) == pytest.approx(0.6)  # concave: longer
+
+
+@pytest.mark.parametrize("sigma", [0.3, 0.5])
+def test_a_self_scaled_relaxation_reaches_the_same_minimum(sigma):
+    # oracles: the relaxation without the scaling, KKT conditions and the dense inertia; the
+    # relaxation's energies never rise
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell(sigma=sigma)
+    plain, scaled = (newton(energy, volume, X0, V, precondition_at=shrunk, history=True,
+                            relax_scaling=scaling, max_iter=300) for scaling in (False, True))
+    assert plain.success and scaled.success and scaled.inertia == 0
+    assert_kkt(energy, volume, scaled, V)
+    assert tangent_inertia_dense(energy, volume, scaled.x) == 0
+    assert scaled.fun == pytest.approx(plain.fun, rel=1e-10)
+    assert scaled.pressure == pytest.approx(plain.pressure, rel=1e-7)
+    energies = [h["energy"] for h in scaled.history if h["step"] == "relax"]
     assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(energies, energies[1:]))
 
 
