@@ -358,7 +358,7 @@ def test_a_self_scaled_relaxation_reaches_the_same_minimum(sigma):
     assert all(b <= a * (1 + ENERGY_ROUNDOFF) for a, b in zip(energies, energies[1:]))
 
 
-def test_rough_stage_is_skipped_for_a_start_far_from_the_relaxed_state():
+def test_rough_stage_is_skipped_for_a_start_far_from_or_close_to_the_relaxed_state():
     # a perturbation larger than the edges (2 edge lengths rms per vertex) tangles the mesh;
     # the relaxation then runs without the rough stage: exactly the run with it switched off
     mesh, energy, volume, V, shrunk, X0 = _jiggled_shell(sigma=2.0 / np.sqrt(3.0))
@@ -369,6 +369,11 @@ def test_rough_stage_is_skipped_for_a_start_far_from_the_relaxed_state():
     runs = [newton(energy, volume, X0, V, precondition_at=shrunk, max_iter=20,
                    relax_rough_shift=rough) for rough in (1e-1, 0.0)]
     assert not np.array_equal(runs[0].x, runs[1].x)
+    # a start closer than 0.3 edge lengths rms has no roughness to remove: no rough stage
+    mesh, energy, volume, V, shrunk, X0 = _jiggled_shell(sigma=0.1)  # 0.17 rms
+    runs = [newton(energy, volume, X0, V, precondition_at=shrunk, max_iter=20,
+                   relax_rough_shift=rough) for rough in (1e-1, 0.0)]
+    assert np.array_equal(runs[0].x, runs[1].x) and runs[0].nit == runs[1].nit
 
 
 def test_single_precision_steps_reach_the_double_precision_minimum():
