@@ -147,7 +147,7 @@ twice it in 20 steps instead of 37). Replays of every second step
 gamma = 271 161 -> 134 iterations and 9.1 -> 8.6 single-precision factorizations per step,
 10 % less CPU time; 20995 253 -> 217 and 10.4 -> 8.9, 14 % less; 2333 the same within 2 %
 (121 -> 117 iterations, 6.7 -> 6.9 factorizations). At 271 and 2333 every replayed step but
-one (of 20 and of 24) ends at the stored minimum, those two within 1e-5 relative of it; at
+one (of 20 and of 24) ends at the stored minimum, those two 1.4e-4 relative above it; at
 20995 most end at other wrinkle patterns, on average 1e-3 relative below the stored energies
 (with 0.5: 2e-4 above, 9 % less CPU time).
 
@@ -284,7 +284,7 @@ RELAX_ROUGH_MIN_MOVE = 0.3
 """The rough stage is also skipped when the start lies closer to the relaxed state than this
 many mean edge lengths (rms): a start without a jiggle, or with a small one, has no
 roughness to remove (the protocol without a jiggle, as in the comparison with Surface Evolver:
-one factorization fewer per step, 0.53 -> 0.45 s per step at gamma = 271 before buckling;
+one factorization fewer per step, 0.52 -> 0.46 s per step at gamma = 271 before buckling;
 the protocol's jiggle moves the vertices by 0.76 edge lengths rms, a volume step of 0.019 V0
 by 0.1)."""
 RELAX_TOL = 1e-5
