@@ -674,9 +674,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         than ``RELAX_ROUGH_MIN_MOVE`` (0.3) mean edge lengths (rms) from
         ``precondition_at``.
     relax_scaling : bool
-        Scale the initial inverse Hessian of the relaxation's steps after its rough stage by
-        the line searches' estimate of how much too soft it is (module docstring,
-        "Preconditioned relaxation").
+        Scale the initial inverse Hessian of the relaxation's steps after its rough stage (or
+        from the start, without one) by the line searches' estimate of how much too soft it
+        is (module docstring, "Preconditioned relaxation").
     single_precision_steps : bool
         Factor the Newton steps of an unconverged point in single precision where the solver
         offers it (module docstring, "Single-precision steps"); the inertia at a converged
@@ -934,6 +934,8 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
             break
         alpha, E_new, X_new = found
         full = full + 1 if alpha == 1.0 else 0
+        # a cut step is judged against the unscaled step's length (the abandon test below)
+        cut = cut + 1 if alpha * tau < RELAX_ASK_ALPHA else 0
         if scaling and rough is None:
             tau = _rescaled(tau, E, E_new, quasi[1], alpha)
         previous, X, E = (X, r), X_new, E_new
@@ -942,7 +944,6 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
         if history:
             records.append(dict(iteration=n - 1, energy=E, grad_norm=r_norm, lam=lam,
                                 inertia=None, mu=np.nan, step="relax", alpha=alpha, rho=np.nan))
-        cut = cut + 1 if alpha < RELAX_ASK_ALPHA else 0
         if abandon is not None and cut >= RELAX_ASK_STEPS and abandon(X):
             break
         if len(energies) > RELAX_WINDOW and energies[-1 - RELAX_WINDOW] - E <= tol * abs(E):
@@ -1210,8 +1211,9 @@ class _Newton:
     def quasi_newton_step(self, X, r, pairs, verr, scale: float = 1.0):
         """L-BFGS step ``p = -H r`` (Nocedal & Wright, Algorithm 7.4) whose initial inverse
         Hessian ``H0`` is the current factorization (the tangent KKT solve, exact at the point
-        where it was factored) and whose pairs are the steps taken since; ``(p, r.p)``, or
-        ``None`` if ``p`` is not a descent direction."""
+        where it was factored) times ``scale`` (the relaxation's self-scaling) and whose pairs
+        are the steps taken since; ``(p, r.p)``, or ``None`` if ``p`` is not a descent
+        direction."""
         q = -r.ravel()
         coefficients = []
         for s_i, y_i, rho_i in reversed(pairs):
