@@ -150,7 +150,8 @@ def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = 
 
 
 HEADER = (f"{'gamma':>7} {'steps':>5} {'cpu s':>7} {'wall s':>7} {'s/step':>6} {'it':>6} "
-          f"{'fact d':>6} {'fact s':>6} {'solves':>6} {'same':>5} {'dE mean':>8}  trajectory made by")
+          f"{'fact d':>6} {'fact s':>6} {'solves':>6} {'same':>5} {'dE mean':>8}  "
+          "trajectory made by")
 
 
 def _row(r: dict) -> str:

@@ -111,28 +111,30 @@ minimization of a step then takes 3-8 factorizations instead of 30-60 and 2-3 s 
 6-9 s, and ends at the same minimum (energies equal to ten digits).
 
 The relaxation starts in a rough stage with a larger shift (``relax_rough_shift``, at first
-``1e-1 mean|diag K|``, now ``mean|diag K|`` itself, see below), and factors again with
-``1e-3`` once three consecutive steps were taken in full (or the energy test above holds). Right after the jiggle the forces are huge
-(``|r|`` ~ 1e5-1e6 on the paper's mesh) and their small components along the soft modes,
-divided by the small shift, made the first directions 10-60 mean edge lengths long at the
-median vertex; the line search cut them to a few percent (the largest vertex move at the
-0.2 R step cap), so the stiff roughness of the jiggle, which wants the full step, fell by
-only a few percent per step. In the wrinkled regime (gamma = 20995) every one of the 100
-relaxation steps allowed was cut to 1-14 % and Newton's method started about 15 kappa above
-the minimum with ~20 negative eigenvalues. With the larger shift the soft components are
-damped at first, the steps are taken in full after 5-20 of them, and the relaxation goes on
-with the small shift from a smooth shell. Replaying stored trajectories
+``1e-1 mean|diag K|``, now ``mean|diag K|`` itself, see below), and factors again with ``1e-3``
+once three consecutive steps were taken in full (or the energy test above holds). Right after
+the jiggle the forces are huge (``|r|`` ~ 1e5-1e6 on the paper's mesh) and their small
+components along the soft modes, divided by the small shift, made the first directions 10-60
+mean edge lengths long at the median vertex; the line search cut them to a few percent (the
+largest vertex move at the 0.2 R step cap), so the stiff roughness of the jiggle, which wants
+the full step, fell by only a few percent per step. In the wrinkled regime (gamma = 20995)
+every one of the 100 relaxation steps allowed was cut to 1-14 % and Newton's method started
+about 15 kappa above the minimum with ~20 negative eigenvalues. With the larger shift the soft
+components are damped at first, the steps are taken in full after 5-20 of them, and the
+relaxation goes on with the small shift from a smooth shell. Replaying stored trajectories
 (``benchmarks/bench_replay.py --every 3``): gamma = 20995 33 % less CPU time, 2333 8 %, 271
-unchanged, one more single-precision factorization per minimization. In the wrinkled regime
-the minimum reached is then another one of the many nearly degenerate wrinkle patterns
-(energies within 0.2 % of the stored ones, above or below); at gamma = 2333 every replayed
-step ends at the stored minimum. The stage is skipped when the start lies more than 1.5 mean
-edge lengths (rms over the vertices) from the relaxed state (``RELAX_ROUGH_MAX_MOVE``): the
-protocol's jiggle is 0.76 edge lengths rms per vertex on the paper's mesh but 2.5 on a
-40k-vertex mesh (the same absolute amplitude), and there the rough stage's local full steps
-locked the tangled triangles in: every one of three steps folded (and was jiggled again),
-against none of two without the stage; capping its steps at 0.5 or 1 edge length did not
-help.
+unchanged, one more single-precision factorization per minimization. In the wrinkled regime the
+minimum reached is then another one of the many nearly degenerate wrinkle patterns (energies
+within 0.2 % of the stored ones, above or below); at gamma = 2333 every replayed step ends at
+the stored minimum. The stage is skipped when the start lies more than 1.5 mean edge lengths
+(rms over the vertices) from the relaxed state (``RELAX_ROUGH_MAX_MOVE``): the protocol's
+jiggle is 0.76 edge lengths rms per vertex on the paper's mesh but 2.5 on a 40k-vertex mesh
+(the same absolute amplitude), and there the rough stage's local full steps locked the tangled
+triangles in: every one of three steps folded (and was jiggled again), against none of two
+without the stage; capping its steps at 0.5 or 1 edge length did not help.
+Nor is there a rough stage for a start closer than 0.3 mean edge lengths (rms) to the relaxed
+state (``RELAX_ROUGH_MIN_MOVE``): without a jiggle, or with a small one, there is nothing
+rough to remove.
 
 With the rough shift ``1e-1 mean|diag K|`` the first 20-30 steps after the jiggle were still
 capped at ``max_step`` (gamma = 271, step 3: the direction moved the median vertex by 1-3
@@ -153,21 +155,21 @@ one (of 20 and of 24) ends at the stored minimum, those two 1.4e-4 relative abov
 
 After the rough stage the shifted Hessian of the relaxed state is still too soft along the
 directions the steps take, by a factor that changes slowly: at gamma = 20995 (step 5 of the
-protocol; every fourth step from the 11th looked at, 23 in all) each step after the rough
-stage raised the energy when taken in full, and the line search's interpolation cut it to
-0.1-0.4 of its length, where the quadratic model held (two energy evaluations per step). The initial inverse Hessian of those
-steps is therefore scaled (``relax_scaling``), as L-BFGS scales its ``H0`` (Nocedal &
-Wright §7.2), by ``tau``: after each step ``tau`` is multiplied by the minimizer of the
-parabola through the energy, the slope and the accepted point along the step (clipped to
-[0.1, 2], ``tau`` within [1e-3, 1]; :func:`_rescaled`). The steps are then taken in full
-(one evaluation) with about the same decrease. Replays of every second step
+protocol; every fourth step from the 11th looked at, 23 in all) each step after the rough stage
+raised the energy when taken in full, and the line search's interpolation cut it to 0.1-0.4 of
+its length, where the quadratic model held (two energy evaluations per step). The initial
+inverse Hessian of those steps is therefore scaled (``relax_scaling``), as L-BFGS scales its
+``H0`` (Nocedal & Wright §7.2), by ``tau``: after each step ``tau`` is multiplied by the
+minimizer of the parabola through the energy, the slope and the accepted point along the step
+(clipped to [0.1, 2], ``tau`` within [1e-3, 1]; :func:`_rescaled`). The steps are then taken in
+full (one evaluation) with about the same decrease. Replays of every second step
 (``benchmarks/bench_replay.py --every 2 --option relax_scaling=False``, on trajectories made
 with it off): CPU time 9 % lower at gamma = 20995 (199.6 -> 193.9 iterations, 8.5 -> 8.1
-single-precision factorizations per step), 4 % lower at 2333 and 4 % higher at 271 (8.0 ->
-8.3 factorizations), all steps at 271 and 2333 at the stored minima; whole runs at 20995
-(three seeds) spent 25 % less time in line searches. The quasi-Newton steps between Newton
-steps are not scaled: their ``H0`` is the Hessian at the point, and scaled in the same way
-they took more factorizations (20995: 8.1 -> 10.2 per step).
+single-precision factorizations per step), 4 % lower at 2333 and 4 % higher at 271 (8.0 -> 8.3
+factorizations), all steps at 271 and 2333 at the stored minima; whole runs at 20995 (three
+seeds) spent 25 % less time in line searches. The quasi-Newton steps between Newton steps are
+not scaled: their ``H0`` is the Hessian at the point, and scaled in the same way they took more
+factorizations (20995: 8.1 -> 10.2 per step).
 
 Single-precision steps
 ----------------------
