@@ -132,13 +132,22 @@ def _slack(E0: float) -> float:
     return ENERGY_ROUNDOFF * max(abs(E0), np.finfo(float).tiny)
 
 
-def _interpolate(alpha, E, E0, slope, lo=0.1, hi=0.5):
-    """Minimizer of the parabola through ``(0, E0)`` with slope ``slope`` and ``(alpha, E)``,
-    clamped to ``[lo alpha, hi alpha]`` (a safeguarded backtracking factor)."""
+def parabola_minimizer(alpha, E, E0, slope) -> float | None:
+    """Minimizer of the parabola through ``(0, E0)`` with slope ``slope`` and ``(alpha, E)``;
+    ``None`` when that parabola is not convex (or ``E`` is not finite)."""
     curv = E - E0 - slope * alpha
     if not np.isfinite(E) or curv <= 0:
+        return None
+    return -slope * alpha * alpha / (2.0 * curv)
+
+
+def _interpolate(alpha, E, E0, slope, lo=0.1, hi=0.5):
+    """:func:`parabola_minimizer` clamped to ``[lo alpha, hi alpha]`` (a safeguarded
+    backtracking factor); ``hi alpha`` where the parabola is not convex."""
+    best = parabola_minimizer(alpha, E, E0, slope)
+    if best is None:
         return hi * alpha
-    return float(np.clip(-slope * alpha * alpha / (2.0 * curv), lo * alpha, hi * alpha))
+    return float(np.clip(best, lo * alpha, hi * alpha))
 
 
 def backtracking(phi, E0: float, slope: float, alpha0: float = 1.0, *, c1: float = 1e-4,

@@ -266,7 +266,8 @@ import scipy.sparse as sp
 
 from .linear import SingularFactorError, make_solver
 from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
-                         curvature_search, mean_edge_length, projected_gradient, restore_volume)
+                         curvature_search, mean_edge_length, parabola_minimizer,
+                         projected_gradient, restore_volume)
 from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
@@ -1017,10 +1018,12 @@ def _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step):
 
 def _rescaled(tau: float, E: float, E_new: float, slope: float, alpha: float) -> float:
     """The next scale of an L-BFGS initial inverse Hessian: ``tau`` times the minimizer
-    (clipped to [0.1, 2]) of the parabola through ``(0, E)`` with slope ``slope`` and the
-    accepted point ``(alpha, E_new)`` of the step it gave, within [1e-3, 1]."""
-    curv = E_new - E - slope * alpha
-    best = -slope * alpha * alpha / (2.0 * curv) if curv > 0 else 2.0 * alpha
+    (clipped to [0.1, 2]; ``2 alpha`` where it is not convex) of the parabola through
+    ``(0, E)`` with slope ``slope`` and the accepted point ``(alpha, E_new)`` of the step it
+    gave (:func:`~.linesearch.parabola_minimizer`), within [1e-3, 1]."""
+    best = parabola_minimizer(alpha, E_new, E, slope)
+    if best is None:
+        best = 2.0 * alpha
     return float(np.clip(tau * min(max(best, 0.1), 2.0), 1e-3, 1.0))
 
 
