@@ -41,6 +41,7 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUME
 
 import argparse  # noqa: E402
 import ast  # noqa: E402
+import contextlib  # noqa: E402
 import dataclasses  # noqa: E402
 import inspect  # noqa: E402
 import platform  # noqa: E402
@@ -106,23 +107,23 @@ def parse_options(items) -> dict:
     return options
 
 
-def _with_options(options: dict):
-    """The protocol's ``minimize`` with ``options`` added to every call."""
+@contextlib.contextmanager
+def newton_options(options: dict):
+    """Within it, every minimization of the protocol gets ``options`` (keyword arguments of
+    :func:`newton`) on top of its own."""
     inner = protocol_mod.minimize
 
     def minimize(*args, **kwargs):
         return inner(*args, **{**kwargs, **options})
 
-    return minimize
+    protocol_mod.minimize = minimize
+    try:
+        yield
+    finally:
+        protocol_mod.minimize = inner
 
 
-def replay(mesh, traj: dict, every: int, per_step: bool, options: dict | None = None) -> dict:
-    if options:
-        saved, protocol_mod.minimize = protocol_mod.minimize, _with_options(options)
-        try:
-            return replay(mesh, traj, every, per_step)
-        finally:
-            protocol_mod.minimize = saved
+def replay(mesh, traj: dict, every: int, per_step: bool) -> dict:
     ctx, _ = _context(mesh, float(traj["gamma"]), int(traj["seed"]))
     counts = ctx.solver.counts
     steps = range(1, len(traj["X"]), every)
@@ -190,7 +191,8 @@ def main(argv=None) -> None:
     for gamma in args.gamma:
         path = args.states / f"g{gamma:g}_v{args.vertices}_s{args.seed}.npz"
         traj = trajectory(path, mesh, gamma, args.seed)
-        rows.append(replay(mesh, traj, args.every, args.steps, options))
+        with newton_options(options):
+            rows.append(replay(mesh, traj, args.every, args.steps))
         print(f"  gamma={gamma:g}: {rows[-1]['steps']} steps replayed", flush=True)
     print()
     print(HEADER)
