@@ -1,7 +1,7 @@
-"""Compiled value/gradient kernels against the NumPy element kernels and central differences.
+"""Compiled kernels against the NumPy element kernels and central differences.
 
-Oracles: the NumPy element derivatives of :mod:`shellbuckle.energies.hinge` (which also build
-the Hessians) scattered with ``np.add.at``; the NumPy volume formula; central differences of
+Oracles: the NumPy element derivatives and Hessians of :mod:`shellbuckle.energies.hinge`
+scattered with ``np.add.at``; the NumPy volume formula; central differences of
 the compiled value; the exact cubic of the volume along a line.
 """
 
@@ -40,6 +40,43 @@ def _numpy_bending(bending, X):
     for a in range(3):
         np.add.at(G, p.FT[a], (w_face * fk.grad[:, a]).T)
     return value, G
+
+
+def _numpy_bending_hessian(bending, X):
+    """Dense Hessian of the Jülicher energy from the NumPy hinge and face Hessians (module
+    :mod:`shellbuckle.energies.hinge`) and the rank-one star terms ``(4 kappa / A_i) g_i g_i^T``,
+    ``g_i = grad M_i - H_i grad A_i``, built row by row with ``np.add.at``."""
+    p, V = bending._plan, len(X)
+    XT = np.ascontiguousarray(X.T)
+    hk = hg.hinge_kernel(XT, p.HT, order=2)
+    fk = hg.face_kernel(XT, p.FT, order=2)
+    M, A = p.vertex_sums(hk.phi, fk.area)
+    H, w_hinge, w_face = bending._weights(M, A)
+    out = np.zeros((3 * V, 3 * V))
+    for elements, local in ((p.HT, hg._dense(hk.hess.upper_blocks(w_hinge), hg.HINGE_UPPER_BLOCKS, 4)),
+                            (p.FT, hg._dense(fk.hess.upper_blocks(w_face), hg.FACE_UPPER_BLOCKS, 3))):
+        dofs = (3 * elements.T[:, :, None] + np.arange(3)).reshape(elements.shape[1], -1)
+        np.add.at(out, (dofs[:, :, None], dofs[:, None, :]), local)
+    grad_M, grad_A = np.zeros((V, 3 * V)), np.zeros((V, 3 * V))
+    for c in range(3):
+        for end in range(2):
+            for a in range(4):
+                np.add.at(grad_M, (p.HT[end], 3 * p.HT[a] + c), 0.25 * hk.dphi[c, a])
+        for centre in range(3):
+            for a in range(3):
+                np.add.at(grad_A, (p.FT[centre], 3 * p.FT[a] + c), fk.grad[c, a] / 3.0)
+    g = grad_M - H[:, None] * grad_A
+    return out + (g.T * (4.0 * bending.kappa / A)) @ g
+
+
+@pytest.mark.parametrize("c0", [0.0, 2.0, -1.3])
+def test_juelicher_hessian_matches_the_numpy_element_kernels(shell, c0):
+    mesh, X = shell
+    bending = Bending.from_mesh(mesh, kappa=1.7, c0=c0)
+    H = bending.hessian(X)
+    ref = _numpy_bending_hessian(bending, X)
+    np.testing.assert_allclose(H.toarray(), ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+    assert abs(H - H.T).max() == 0.0
 
 
 @pytest.mark.parametrize("c0", [0.0, 2.0, -1.3])

@@ -44,17 +44,14 @@ vertices up to two edges apart; the Hessian pattern is the union of the stars' s
 Implementation
 --------------
 The value and the gradient come from one compiled loop over hinges and faces
-(:func:`.kernels.juelicher`, Numba), the Hessian from NumPy kernels vectorized over hinges,
-faces and stars (:mod:`.hinge`); the tests check each gradient against the other and against
-central differences. The 3x3 block pattern, the map from every element block to its pattern
-block and the CSR layout are built once (:class:`_Plan`). A Hessian evaluation writes only
-the upper local blocks of every hinge, face and star (diagonal blocks halved) into a work
-array, reduces them with one ``np.bincount`` per block entry into blocks ``U``, and returns
-``U + U^T`` gathered straight into CSR order (sorted indices, same pattern at every call). Internally, elements and blocks
-are ordered by a reverse Cuthill-McKee numbering of the vertices, and each block is stored
-next to its transpose, so that the reductions touch memory locally whatever the mesh's own
-vertex numbering. The work array (``9 x 8 bytes`` per element block, about 5 kB per vertex)
-is kept per thread. Dofs are vertex-major (``3 v + c``).
+(:func:`.kernels.juelicher`, Numba), the Hessian from another
+(:func:`.kernels.juelicher_hessian`), which adds every hinge's, face's and star's 3x3 blocks
+straight into the data of a CSR matrix whose pattern (sorted indices, the union of the stars'
+squares) and whose block offsets per element are built once (:class:`_Plan`); the element
+formulas are those of the NumPy kernels of :mod:`.hinge`, against which the tests compare
+both, and against central differences. Elements are ordered by a reverse Cuthill-McKee
+numbering of the vertices, so that the scatters touch memory locally whatever the mesh's own
+vertex numbering. Dofs are vertex-major (``3 v + c``).
 """
 
 from __future__ import annotations
@@ -177,20 +174,16 @@ class Bending:
         return self._compiled(X, True)
 
     def hessian(self, X) -> sp.csr_matrix:
-        """Exact (indefinite in general) Hessian, CSR ``(3V, 3V)``, vertex-major dofs."""
-        p = self._plan
-        XT = self._XT(X)
+        """Exact (indefinite in general) Hessian, CSR ``(3V, 3V)``, vertex-major dofs; the
+        same pattern (sorted indices) at every call (:func:`.kernels.juelicher_hessian`)."""
+        p, X = self._plan, kernels.positions(X, self.n_vertices)
         p.prepare_hessian()
-        hk = hg.hinge_kernel(XT, p.HT, order=2)
-        fk = hg.face_kernel(XT, p.FT, order=2)
-        M, A = p.vertex_sums(hk.phi, fk.area)
-        H, w, u = self._weights(M, A)
-        buf = p.buffer()
-        hk.hess.upper_blocks(w, out=p.hinge_view(buf), half_diagonal=True)
-        fk.hess.upper_blocks(u, out=p.face_view(buf), half_diagonal=True)
-        G = p.star_gradients(0.25 * hk.dphi, fk.grad, H)
-        p.star_blocks(G, (4.0 * self.kappa) / A, buf)
-        return p.assemble(buf)
+        data = kernels.juelicher_hessian(X, p.HT, p.FT, self.kappa, self.c0, p.hinge_off,
+                                         p.face_off, p.hinge_slot, p.face_slot, p.star_ptr,
+                                         p.star_member, p.star_sq_ptr, p.star_off, p.stride,
+                                         p.mirror, np.empty(p.n_data))
+        n = 3 * self.n_vertices
+        return sp.csr_matrix((data, p.indices, p.indptr), shape=(n, n))
 
 
 class _Plan:
@@ -218,20 +211,18 @@ class _Plan:
         HT = np.ascontiguousarray(HT[:, np.argsort(rank[HT].min(axis=0), kind="stable")])
         FT = np.ascontiguousarray(FT[:, np.argsort(rank[FT].min(axis=0), kind="stable")])
         self.V, self.FT, self.HT = V, FT, HT
-        self._valence, self._rank = valence, rank
+        self._valence = valence
         self._lock = threading.Lock()
-        self._local = threading.local()
         self._hessian_ready = False
 
-    def __getstate__(self):  # picklable (e.g. for process pools): drop the lock and scratch
+    def __getstate__(self):  # picklable (e.g. for process pools): drop the lock
         state = self.__dict__.copy()
-        del state["_lock"], state["_local"]
+        del state["_lock"]
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._lock = threading.Lock()
-        self._local = threading.local()
 
     def prepare_hessian(self):
         """Build the Hessian's index arrays on first use (value and gradient do not need them)."""
@@ -242,103 +233,75 @@ class _Plan:
                     self._hessian_ready = True
 
     def _build_hessian_plan(self):
-        V, FT, HT, valence, rank = self.V, self.FT, self.HT, self._valence, self._rank
-        n_faces, n_hinges = FT.shape[1], HT.shape[1]
-        coord = np.arange(3)[:, None, None]
-        # stars: slot 0 the vertex, then its neighbours
+        """The block pattern (union of the stars' squares) as a CSR layout, and for every
+        hinge, face and star the offsets of its blocks in the CSR data
+        (:func:`.kernels.juelicher_hessian`)."""
+        V, FT, HT, valence = self.V, self.FT, self.HT, self._valence
+        # stars: slot 0 the vertex, then its neighbours in increasing order
         centers = np.concatenate([HT[0], HT[1]])
         members = np.concatenate([HT[1], HT[0]])
         order = np.lexsort((members, centers))
         star_ptr = np.zeros(V + 1, dtype=np.int64)
         np.cumsum(valence + 1, out=star_ptr[1:])
-        self.n_slots = int(star_ptr[-1])
+        n_slots = int(star_ptr[-1])
         star_center = np.repeat(np.arange(V), valence + 1)
-        star_member = np.empty(self.n_slots, dtype=np.int64)
-        is_self = np.zeros(self.n_slots, dtype=bool)
+        star_member = np.empty(n_slots, dtype=np.int64)
+        is_self = np.zeros(n_slots, dtype=bool)
         is_self[star_ptr[:-1]] = True
         star_member[is_self] = np.arange(V)
         star_member[~is_self] = members[order]
-        key = star_center * V + star_member
-        sorter = np.argsort(key)
-        skey = key[sorter]
+        slot_keys = star_center * V + star_member
+        slot_sorter = np.argsort(slot_keys)
 
-        def slot(c, m):
-            return sorter[np.searchsorted(skey, c * V + m)]
+        def slot(c, m):  # star slot of vertex m in the star of vertex c
+            return slot_sorter[np.searchsorted(slot_keys[slot_sorter], c * V + m)]
 
-        # star slot of every hinge vertex in the stars of both end points, of every face corner
-        # in the stars of all three corners
-        # (flat index c * n_slots + slot, matching the (3, ...) coordinate-first layouts)
-        S = self.n_slots
-        self.star_hinge = [(coord * S + np.stack([slot(HT[s], HT[a]) for a in range(4)])[None]).ravel()
-                           for s in range(2)]  # (3 coords, 4 hinge vertices, E), per end point s
-        fslot = np.stack([np.stack([slot(FT[p], FT[a]) for a in range(3)]) for p in range(3)])
-        self.star_face = (coord[..., None] * S + fslot[None]).ravel()  # (3 coords, 3 centers, 3 corners, F)
-        # block pattern: union of star x star, numbered in the internal order
-        groups = []
-        pair_keys = []
-        for n in np.unique(valence):
-            verts = np.flatnonzero(valence == n)
-            verts = verts[np.argsort(rank[verts])]
-            slots = star_ptr[verts][:, None] + np.arange(n + 1)
-            mem = rank[star_member[slots]]
-            pair_keys.append((mem[:, :, None] * V + mem[:, None, :]).ravel())
-            P, Q = np.triu_indices(n + 1)
-            groups.append((verts, slots, P, Q, mem))
-        ukeys = np.unique(np.concatenate(pair_keys))
-        self.n_blocks = nb = len(ukeys)
-        # internal block order: each off-diagonal block (a, b) next to its transpose (b, a),
-        # pairs ordered by (min, max) rank, first the one whose row has the lower rank; then
-        # the diagonal blocks. U + U^T is then a sum of strided slices.
-        ra, rb = ukeys // V, ukeys % V
-        off = ra != rb
-        self.n_pair_blocks = int(off.sum())
-        order_off = np.flatnonzero(off)[np.lexsort((ra[off] > rb[off], np.maximum(ra, rb)[off],
-                                                    np.minimum(ra, rb)[off]))]
-        relabel = np.empty(nb, dtype=np.int64)
-        relabel[np.concatenate([order_off, np.flatnonzero(~off)])] = np.arange(nb)
-
-        def block(ra, rb):  # internal block number of ranked vertices (ra, rb)
-            return relabel[np.searchsorted(ukeys, ra * V + rb)]
-
-        # element upper blocks -> pattern blocks, in the buffer's column order
-        rH, rF = rank[HT], rank[FT]
-        maps = [np.stack([block(rH[p], rH[q]) for p, q in hg.HINGE_UPPER_BLOCKS]).ravel(),
-                np.stack([block(rF[p], rF[q]) for p, q in hg.FACE_UPPER_BLOCKS]).ravel()]
-        self._hinge_cols = (0, 9 * n_hinges, n_hinges)
-        self._face_cols = (9 * n_hinges, 9 * n_hinges + 6 * n_faces, n_faces)
-        start = self._face_cols[1]
-        self.star_groups = []
-        for verts, slots, P, Q, mem in groups:
-            maps.append(block(mem[:, P], mem[:, Q]).ravel())
-            stop = start + len(verts) * len(P)
-            half = np.where(P == Q, 0.5, 1.0)
-            self.star_groups.append((verts, slots[:, P], slots[:, Q], half, start, stop))
-            start = stop
-        self.n_contrib = start
-        self.block_map = np.concatenate(maps)
-        # CSR layout of the full symmetric matrix in the mesh's numbering: row 3a + c holds the
-        # blocks (a, b), b increasing, each with d = 0..2
-        inverse = np.empty(V, dtype=np.int64)
-        inverse[rank] = np.arange(V)
-        ba, bb = inverse[ukeys // V], inverse[ukeys % V]
-        by_csr = np.argsort(ba * V + bb)
-        csr_order = relabel[by_csr]  # CSR block -> internal block
-        ba, bb = ba[by_csr], bb[by_csr]
+        self.star_ptr, self.star_member = star_ptr, star_member
+        self.hinge_slot = np.stack([np.stack([slot(HT[s], HT[a]) for a in range(4)])
+                                    for s in range(2)])  # (2 end points, 4 hinge vertices, E)
+        self.face_slot = np.stack([np.stack([slot(FT[p], FT[a]) for a in range(3)])
+                                   for p in range(3)])  # (3 centres, 3 corners, F)
+        # the pattern's blocks (a, b), sorted: every pair of slots of every star
+        n = np.diff(star_ptr)
+        self.star_sq_ptr = np.zeros(V + 1, dtype=np.int64)
+        np.cumsum(n * n, out=self.star_sq_ptr[1:])
+        owner = np.repeat(np.arange(V), n * n)
+        within = np.arange(self.star_sq_ptr[-1]) - self.star_sq_ptr[owner]
+        row = star_member[star_ptr[owner] + within // n[owner]]
+        col = star_member[star_ptr[owner] + within % n[owner]]
+        pair_keys = row * V + col
+        keys = np.unique(pair_keys)
+        brow = keys // V
         bptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(np.bincount(ba, minlength=V), out=bptr[1:])
+        np.cumsum(np.bincount(brow, minlength=V), out=bptr[1:])
         nbl = np.diff(bptr)
-        within = np.arange(nb) - bptr[ba]
-        c = np.arange(3)[:, None, None]
-        d = np.arange(3)[None, :, None]
-        pos = (9 * bptr[ba] + 3 * c * nbl[ba] + 3 * within + d).ravel()  # (c, d, block) order
-        csr_from = np.empty(9 * nb, dtype=np.int64)
-        indices = np.empty(9 * nb, dtype=np.int32)
-        csr_from[pos] = ((3 * c + d) * nb + csr_order).ravel()  # from component-major (9, nb)
-        indices[pos] = np.broadcast_to(3 * bb + d, (3, 3, nb)).ravel()
-        indptr = np.empty(3 * V + 1, dtype=np.int32)
-        indptr[:-1] = (9 * bptr[:-1, None] + 3 * np.arange(3) * nbl[:, None]).ravel()
-        indptr[-1] = 9 * nb
-        self.csr_from, self.indices, self.indptr = csr_from, indices, indptr
+        self.stride = 3 * nbl  # block row a: entry (c, d) of its k-th block at 9 bptr[a] + 3 k + c stride[a] + d
+
+        def offset(a, b):  # position of entry (0, 0) of block (a, b) in the CSR data
+            k = np.searchsorted(keys, a * V + b)
+            return 9 * bptr[a] + 3 * (k - bptr[a])
+
+        self.star_off = offset(row, col)
+        self.hinge_off = np.stack([np.stack([offset(HT[p], HT[q]) for q in range(4)]) for p in range(4)])
+        self.face_off = np.stack([np.stack([offset(FT[p], FT[q]) for q in range(3)]) for p in range(3)])
+        # CSR indices: row 3 a + c holds the blocks (a, b), b increasing, each with d = 0..2
+        bcol = keys % V
+        rows3 = (3 * bptr[:-1, None] * 3 + 3 * np.arange(3) * nbl[:, None]).ravel()
+        indices = np.empty(9 * len(keys), dtype=np.int32)
+        k = np.arange(len(keys))
+        for c in range(3):
+            for d in range(3):
+                indices[9 * bptr[brow] + 3 * (k - bptr[brow]) + c * self.stride[brow] + d] = 3 * bcol + d
+        self.indices = indices
+        self.indptr = np.append(rows3, 9 * len(keys)).astype(np.int32)
+        self.n_data = 9 * len(keys)
+        # every entry above the diagonal and its transpose
+        row_of = np.repeat(np.arange(3 * V), np.diff(self.indptr))
+        upper = np.flatnonzero(indices > row_of)
+        transposed = sp.csr_matrix((np.arange(self.n_data, dtype=np.float64), indices,
+                                    self.indptr), shape=(3 * V, 3 * V)).T.tocsr()
+        transposed.sort_indices()
+        self.mirror = np.stack([upper, transposed.data.astype(np.int64)[upper]])
 
     # -------------------------------------------------------------- reductions
 
@@ -351,65 +314,3 @@ class _Plan:
         A += np.bincount(self.FT[1], weights=area, minlength=V)
         A += np.bincount(self.FT[2], weights=area, minlength=V)
         return 0.25 * M, A / 3.0
-
-    def star_gradients(self, dM_hinge, dA_face, H):
-        """``g_i = grad M_i - H_i grad A_i`` on the star slots, ``(3, n_slots)``.
-
-        ``dM_hinge (3, 4, E)`` is ``grad(l theta) / 4``, ``dA_face (3, 3, F)`` the area gradient.
-        """
-        n = 3 * self.n_slots
-        w = dM_hinge.ravel()
-        G = np.bincount(self.star_hinge[0], weights=w, minlength=n)
-        G += np.bincount(self.star_hinge[1], weights=w, minlength=n)
-        fw = np.take(H, self.FT) * (-1.0 / 3.0)  # (3 centers, F)
-        G += np.bincount(self.star_face, weights=(fw[None, :, None, :] * dA_face[:, None]).ravel(),
-                         minlength=n)
-        return G.reshape(3, self.n_slots)
-
-    def hinge_view(self, buf):
-        lo, hi, n = self._hinge_cols
-        return _view(buf, lo, hi, (3, 3, 9, n))
-
-    def face_view(self, buf):
-        lo, hi, n = self._face_cols
-        return _view(buf, lo, hi, (3, 3, 6, n))
-
-    def star_blocks(self, G, weight, buf):
-        """Upper blocks of ``sum_i weight_i g_i g_i^T`` into ``buf``."""
-        for verts, sP, sQ, half, lo, hi in self.star_groups:
-            gP = np.take(G, sP, axis=1)  # (3, n_g, pairs)
-            gP *= np.take(weight, verts)[:, None] * half
-            gQ = np.take(G, sQ, axis=1)
-            np.multiply(gP[:, None], gQ[None, :], out=_view(buf, lo, hi, (3, 3) + sP.shape))
-
-    def buffer(self):
-        """Work array ``(9, n_contrib)`` for the element blocks, kept per thread."""
-        buf = getattr(self._local, "buf", None)
-        if buf is None:
-            buf = self._local.buf = np.empty((9, self.n_contrib))
-        return buf
-
-    def assemble(self, buf) -> sp.csr_matrix:
-        """``U + U^T`` of the upper blocks in ``buf (9, n_contrib)`` as a CSR matrix."""
-        nb = self.n_blocks
-        U = np.empty((9, nb))
-        for k in range(9):
-            U[k] = np.bincount(self.block_map, weights=buf[k], minlength=nb)
-        full = np.empty((9, nb))
-        n2 = self.n_pair_blocks
-        for k in range(9):  # U + U^T: block (a, b) entry (c, d) gets block (b, a) entry (d, c)
-            kt = 3 * (k % 3) + k // 3
-            np.add(U[k, 0:n2:2], U[kt, 1:n2:2], out=full[k, 0:n2:2])
-            np.add(U[k, 1:n2:2], U[kt, 0:n2:2], out=full[k, 1:n2:2])
-            np.add(U[k, n2:], U[kt, n2:], out=full[k, n2:])
-        data = np.take(full, self.csr_from)
-        n = 3 * self.V
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
-
-
-def _view(buf, lo, hi, shape):
-    """Columns ``lo:hi`` of ``buf (9, n)`` seen as ``shape`` without copying (written into)."""
-    out = buf[:, lo:hi].reshape(shape)
-    if not np.may_share_memory(out, buf):
-        raise RuntimeError("internal error: block buffer view would be a copy")
-    return out

@@ -1,13 +1,16 @@
-"""Compiled per-element kernels of the energies' values and gradients (Numba).
+"""Compiled per-element kernels of the energies' values, gradients and the bending Hessian (Numba).
 
 A minimization evaluates the energy and its gradient, and the enclosed volume, a few hundred
 times per volume step (every line-search trial and every volume restoration), against about a
 dozen Hessians. The NumPy kernels of :mod:`.hinge`, :mod:`.bending`, :mod:`.stretching` and
 :mod:`.volume` do that in a dozen passes over ``(3, n)`` temporaries; the same formulas in
 one compiled loop over the elements are 4-6 times faster (``benchmarks/bench_energies.py``).
-The Hessians keep the NumPy kernels (low-rank element blocks scattered into a fixed CSR
-pattern), and the tests compare both implementations of every gradient with each other and
-with central differences.
+The Jülicher bending Hessian, which couples vertices two rings apart and was the costliest
+part of every assembly of the Newton matrix (19 ms on the paper's 3594-vertex mesh with the
+NumPy kernels, against 1.7 ms for the stretching Hessian), is compiled too
+(:func:`juelicher_hessian`, 6 ms); the other Hessians keep the NumPy kernels. The tests compare
+both implementations of every gradient and of the bending Hessian with each other and with
+central differences.
 
 Each kernel serves both the value alone and the value with the gradient (``gradient=False``
 skips the second pass): the value is then the same number, bit for bit, whichever is asked,
@@ -217,3 +220,239 @@ def volume_along(X, D, FT):
     out = np.empty(4)
     out[0], out[1], out[2], out[3] = k0 / 6.0, k1 / 6.0, k2 / 6.0, k3 / 6.0
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_block(data, base, stride, w, B, transpose):
+    """``data[base + c stride + d] += w B[c, d]`` (or ``B[d, c]``): one 3x3 block of a CSR
+    matrix whose block rows are laid out as in :func:`juelicher_hessian`."""
+    for c in range(3):
+        for d in range(3):
+            data[base + c * stride + d] += w * (B[d, c] if transpose else B[c, d])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _add_skew(B, s, v):
+    """``B += s [v]_x`` for a 3x3 ``B`` (``[v]_x w = v x w``)."""
+    B[0, 1] -= s * v[2]
+    B[0, 2] += s * v[1]
+    B[1, 0] += s * v[2]
+    B[1, 2] -= s * v[0]
+    B[2, 0] -= s * v[1]
+    B[2, 1] += s * v[0]
+
+
+@njit(cache=True, nogil=True)
+def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, face_slot,
+                      star_ptr, star_member, star_sq_ptr, star_off, stride, mirror, data):
+    """Exact Hessian of :func:`juelicher`, added into the CSR ``data`` of a fixed pattern.
+
+    ``Hess E = sum_e w_e Hess(l_e theta_e) + sum_f u_f Hess(area_f)
+    + sum_i (4 kappa / A_i) g_i g_i^T`` (:mod:`.bending`; element Hessians as in
+    :class:`.hinge.HingeHessian` and :class:`.hinge.FaceAreaHessian`). Block ``(a, b)``
+    entry ``(c, d)`` of the matrix lies at ``data[off + c stride[a] + d]``, with ``off`` from
+    ``hinge_off (4, 4, E)`` for the vertices ``(p, q)`` of a hinge, ``face_off (3, 3, F)`` for
+    the corners of a face and ``star_off`` for the pairs of star slots of a vertex ``v``
+    (``n^2`` pairs from ``star_sq_ptr[v]``, ``n`` the slots of its star). ``hinge_slot (2, 4, E)``: star
+    slot of each hinge vertex in the stars of the edge's end points, ``face_slot (3, 3, F)``:
+    of each corner in the stars of the three corners; ``star_member`` the vertex of each slot.
+    ``data`` is zeroed first. ``mirror (2, m)`` pairs every entry above the diagonal with its
+    transpose; both get their mean, so that the matrix is exactly symmetric (the two are
+    sums of the same terms, rounded in another order)."""
+    V, nh, nf = X.shape[0], HT.shape[1], FT.shape[1]
+    data[:] = 0.0
+    M = np.zeros(V)
+    A = np.zeros(V)
+    dphi = np.empty((nh, 4, 3))
+    dA = np.empty((nf, 3, 3))
+    # pass 1: phi = L theta, areas and their gradients
+    for h in range(nh):
+        i, j, k, l = HT[0, h], HT[1, h], HT[2, h], HT[3, h]
+        e0, e1, e2 = X[j, 0] - X[i, 0], X[j, 1] - X[i, 1], X[j, 2] - X[i, 2]
+        a0, a1, a2 = X[k, 0] - X[i, 0], X[k, 1] - X[i, 1], X[k, 2] - X[i, 2]
+        b0, b1, b2 = X[l, 0] - X[i, 0], X[l, 1] - X[i, 1], X[l, 2] - X[i, 2]
+        n00, n01, n02 = e1 * a2 - e2 * a1, e2 * a0 - e0 * a2, e0 * a1 - e1 * a0
+        n10, n11, n12 = b1 * e2 - b2 * e1, b2 * e0 - b0 * e2, b0 * e1 - b1 * e0
+        LL = e0 * e0 + e1 * e1 + e2 * e2
+        L = np.sqrt(LL)
+        theta = np.arctan2(-L * (n00 * b0 + n01 * b1 + n02 * b2),
+                           n00 * n10 + n01 * n11 + n02 * n12)
+        M[i] += L * theta
+        M[j] += L * theta
+        Ls0 = L / (n00 * n00 + n01 * n01 + n02 * n02)
+        Ls1 = L / (n10 * n10 + n11 * n11 + n12 * n12)
+        t0 = (a0 * e0 + a1 * e1 + a2 * e2) / LL
+        t1 = (b0 * e0 + b1 * e1 + b2 * e2) / LL
+        for c in range(3):
+            nc0 = n00 if c == 0 else (n01 if c == 1 else n02)
+            nc1 = n10 if c == 0 else (n11 if c == 1 else n12)
+            ec = e0 if c == 0 else (e1 if c == 1 else e2)
+            g2 = -Ls0 * nc0
+            g3 = -Ls1 * nc1
+            d1 = L * -(t0 * g2 + t1 * g3) + theta * (ec / L)
+            dphi[h, 1, c] = d1
+            dphi[h, 2, c] = L * g2
+            dphi[h, 3, c] = L * g3
+            dphi[h, 0, c] = -(d1 + L * g2 + L * g3)
+    for f in range(nf):
+        p, q, r = FT[0, f], FT[1, f], FT[2, f]
+        u0, u1, u2 = X[q, 0] - X[p, 0], X[q, 1] - X[p, 1], X[q, 2] - X[p, 2]
+        v0, v1, v2 = X[r, 0] - X[p, 0], X[r, 1] - X[p, 1], X[r, 2] - X[p, 2]
+        m0, m1, m2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        norm = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        A[p] += 0.5 * norm
+        A[q] += 0.5 * norm
+        A[r] += 0.5 * norm
+        h0, h1, h2 = m0 / norm, m1 / norm, m2 / norm
+        dA[f, 1, 0], dA[f, 1, 1], dA[f, 1, 2] = (0.5 * (v1 * h2 - v2 * h1), 0.5 * (v2 * h0 - v0 * h2),
+                                                 0.5 * (v0 * h1 - v1 * h0))
+        dA[f, 2, 0], dA[f, 2, 1], dA[f, 2, 2] = (0.5 * (h1 * u2 - h2 * u1), 0.5 * (h2 * u0 - h0 * u2),
+                                                 0.5 * (h0 * u1 - h1 * u0))
+        for c in range(3):
+            dA[f, 0, c] = -(dA[f, 1, c] + dA[f, 2, c])
+    H = np.empty(V)
+    f_M = np.empty(V)
+    f_A = np.empty(V)
+    star_w = np.empty(V)
+    for v in range(V):
+        Av = A[v] / 3.0
+        H[v] = 0.25 * M[v] / Av
+        f_M[v] = 2.0 * kappa * (2.0 * H[v] - c0)
+        f_A[v] = 0.5 * kappa * (c0 * c0 - 4.0 * H[v] * H[v])
+        star_w[v] = 4.0 * kappa / Av
+    # pass 2: w_e Hess(phi_e), the low-rank form of hinge.HingeHessian for phi = L theta
+    B = np.empty((4, 4, 3, 3))
+    e, n0, n1, eh = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    av, bv, xaa, xbb = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    y0, y1, pv, qv, rv = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    for h in range(nh):
+        i, j, k, l = HT[0, h], HT[1, h], HT[2, h], HT[3, h]
+        w = 0.25 * (f_M[i] + f_M[j])
+        for c in range(3):
+            e[c] = X[j, c] - X[i, c]
+            av[c] = X[k, c] - X[i, c]
+            bv[c] = X[l, c] - X[i, c]
+        n0[0], n0[1], n0[2] = e[1] * av[2] - e[2] * av[1], e[2] * av[0] - e[0] * av[2], e[0] * av[1] - e[1] * av[0]
+        n1[0], n1[1], n1[2] = bv[1] * e[2] - bv[2] * e[1], bv[2] * e[0] - bv[0] * e[2], bv[0] * e[1] - bv[1] * e[0]
+        LL = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+        L = np.sqrt(LL)
+        theta = np.arctan2(-L * (n0[0] * bv[0] + n0[1] * bv[1] + n0[2] * bv[2]),
+                           n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2])
+        s0 = 1.0 / (n0[0] * n0[0] + n0[1] * n0[1] + n0[2] * n0[2])
+        s1 = 1.0 / (n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
+        Ls0, Ls1 = L * s0, L * s1
+        t0 = (av[0] * e[0] + av[1] * e[1] + av[2] * e[2]) / LL
+        t1 = (bv[0] * e[0] + bv[1] * e[1] + bv[2] * e[2]) / LL
+        for c in range(3):
+            eh[c] = e[c] / L
+        for c in range(3):
+            c1, c2 = (c + 1) % 3, (c + 2) % 3
+            m0c = n0[c1] * av[c2] - n0[c2] * av[c1]  # n0 x a
+            m1c = n1[c1] * bv[c2] - n1[c2] * bv[c1]  # n1 x b
+            g1c = -(t0 * (-Ls0 * n0[c]) + t1 * (-Ls1 * n1[c]))
+            xaa[c] = L * (Ls0 * s0) * (n0[c1] * e[c2] - n0[c2] * e[c1])
+            xbb[c] = L * -(Ls1 * s1) * (n1[c1] * e[c2] - n1[c2] * e[c1])
+            y0[c] = L * (-s0 * eh[c] - (2.0 * Ls0 * s0) * m0c) - Ls0 * eh[c]
+            y1[c] = L * (-s1 * eh[c] + (2.0 * Ls1 * s1) * m1c) - Ls1 * eh[c]
+            gt0 = (av[c] - (2.0 * t0) * e[c]) / LL
+            gt1 = (bv[c] - (2.0 * t1) * e[c]) / LL
+            pv[c] = (-0.5 * L) * -(Ls0 * gt0 + (t0 * s0) * eh[c] + (2.0 * t0 * Ls0 * s0) * m0c)
+            qv[c] = (-0.5 * L) * -(Ls1 * gt1 + (t1 * s1) * eh[c] - (2.0 * t1 * Ls1 * s1) * m1c)
+            rv[c] = g1c - (0.5 * theta / L) * eh[c]
+        gam0, gam1, delta = L * Ls0, -L * Ls1, theta / L
+        for c in range(3):
+            for d in range(3):
+                # (j, j) = d2/de2, (j, k) and (j, l) = d2/de da, d2/de db, (k, k), (l, l)
+                ee = (n0[c] * pv[d] + n1[c] * qv[d] + eh[c] * rv[d]
+                      + n0[d] * pv[c] + n1[d] * qv[c] + eh[d] * rv[c])
+                B[1, 1, c, d] = ee + (delta if c == d else 0.0)
+                B[1, 2, c, d] = y0[c] * n0[d]
+                B[1, 3, c, d] = y1[c] * n1[d]
+                B[2, 2, c, d] = n0[c] * xaa[d] + xaa[c] * n0[d]
+                B[3, 3, c, d] = n1[c] * xbb[d] + xbb[c] * n1[d]
+                B[2, 3, c, d] = 0.0
+        _add_skew(B[1, 2], -gam0, av)  # (j, k) = y0 n0^T - gamma0 [a]_x
+        _add_skew(B[1, 3], -gam1, bv)  # (j, l) = y1 n1^T - gamma1 [b]_x
+        # vertex i enters through e, a, b = x - x_i: its blocks are minus the row sums
+        for c in range(3):
+            for d in range(3):
+                B[0, 1, c, d] = -(B[1, 1, c, d] + B[1, 2, d, c] + B[1, 3, d, c])
+                B[0, 2, c, d] = -(B[1, 2, c, d] + B[2, 2, c, d])
+                B[0, 3, c, d] = -(B[1, 3, c, d] + B[3, 3, c, d])
+        for c in range(3):
+            for d in range(3):
+                B[0, 0, c, d] = -(B[0, 1, c, d] + B[0, 2, c, d] + B[0, 3, c, d])
+        for p in range(4):
+            for q in range(p, 4):
+                if p == 2 and q == 3:  # identically zero
+                    continue
+                _add_block(data, hinge_off[p, q, h], stride[HT[p, h]], w, B[p, q], False)
+                if q != p:
+                    _add_block(data, hinge_off[q, p, h], stride[HT[q, h]], w, B[p, q], True)
+    # u_f Hess(area_f): c (E_p . E_q) nhat nhat^T + s_pq [nhat]_x / 2 (hinge.FaceAreaHessian)
+    Ed = np.empty((3, 3))
+    F3 = np.empty((3, 3))
+    nh3, u, v = np.empty(3), np.empty(3), np.empty(3)
+    for f in range(nf):
+        p0, p1, p2 = FT[0, f], FT[1, f], FT[2, f]
+        for c in range(3):
+            u[c] = X[p1, c] - X[p0, c]
+            v[c] = X[p2, c] - X[p0, c]
+        nh3[0], nh3[1], nh3[2] = u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]
+        norm = np.sqrt(nh3[0] * nh3[0] + nh3[1] * nh3[1] + nh3[2] * nh3[2])
+        for c in range(3):
+            nh3[c] /= norm
+            Ed[0, c] = v[c] - u[c]
+            Ed[1, c] = -v[c]
+            Ed[2, c] = u[c]
+        wu = (f_A[p0] + f_A[p1] + f_A[p2]) / 3.0
+        cc = 0.5 / norm
+        for p in range(3):
+            for q in range(3):
+                coef = cc * (Ed[p, 0] * Ed[q, 0] + Ed[p, 1] * Ed[q, 1] + Ed[p, 2] * Ed[q, 2])
+                for c in range(3):
+                    for d in range(3):
+                        F3[c, d] = coef * nh3[c] * nh3[d]
+                if q == (p + 1) % 3:
+                    s = -0.5
+                elif q == (p + 2) % 3:
+                    s = 0.5
+                else:
+                    s = 0.0
+                if s != 0.0:
+                    _add_skew(F3, s, nh3)
+                _add_block(data, face_off[p, q, f], stride[FT[p, f]], wu, F3, False)
+    # sum_i (4 kappa / A_i) g_i g_i^T, g_i = grad M_i - H_i grad A_i on the star of i
+    n_slots = star_member.shape[0]
+    G = np.zeros((n_slots, 3))
+    for h in range(nh):
+        for s in range(2):
+            for a in range(4):
+                slot = hinge_slot[s, a, h]
+                for c in range(3):
+                    G[slot, c] += 0.25 * dphi[h, a, c]
+    for f in range(nf):
+        for p in range(3):
+            wf = H[FT[p, f]] * (-1.0 / 3.0)
+            for a in range(3):
+                slot = face_slot[p, a, f]
+                for c in range(3):
+                    G[slot, c] += wf * dA[f, a, c]
+    for v in range(V):
+        lo, n = star_ptr[v], star_ptr[v + 1] - star_ptr[v]
+        base = star_sq_ptr[v]
+        wv = star_w[v]
+        for P in range(n):
+            rowstride = stride[star_member[lo + P]]
+            for Q in range(n):
+                off = star_off[base + P * n + Q]
+                for c in range(3):
+                    gPc = wv * G[lo + P, c]
+                    for d in range(3):
+                        data[off + c * rowstride + d] += gPc * G[lo + Q, d]
+    for t in range(mirror.shape[1]):
+        up, lo = mirror[0, t], mirror[1, t]
+        mean = 0.5 * (data[up] + data[lo])
+        data[up] = mean
+        data[lo] = mean
+    return data
