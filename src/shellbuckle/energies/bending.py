@@ -178,21 +178,104 @@ class Bending:
         same pattern (sorted indices) at every call (:func:`.kernels.juelicher_hessian`)."""
         p, X = self._plan, kernels.positions(X, self.n_vertices)
         p.prepare_hessian()
+        s = p.pattern
         data = kernels.juelicher_hessian(X, p.HT, p.FT, self.kappa, self.c0, p.hinge_off,
-                                         p.face_off, p.hinge_slot, p.face_slot, p.star_ptr,
-                                         p.star_member, p.star_sq_ptr, p.star_off, p.stride,
-                                         p.mirror, np.empty(p.n_data))
-        n = 3 * self.n_vertices
-        return sp.csr_matrix((data, p.indices, p.indptr), shape=(n, n))
+                                         p.face_off, p.hinge_slot, p.face_slot, s.star_ptr,
+                                         s.star_member, s.star_sq_ptr, s.star_off, s.stride,
+                                         s.mirror, np.empty(s.n_data))
+        return s.matrix(data)
+
+
+class StarPattern:
+    """The CSR layout of a Hessian that couples the vertices of every *star* (a vertex, in slot
+    0, followed by its neighbours in increasing order): block ``(a, b)`` exists iff ``a`` and
+    ``b`` lie in a common star, so it reaches two edges apart. Built once per mesh from its
+    edges ``(2, E)`` (each once, either direction) and shared by the compiled bending Hessians
+    (:func:`.kernels.juelicher_hessian`, :func:`.kernels.star_perp_hessian`).
+
+    The star slots of all vertices are numbered consecutively (``star_ptr (V + 1)``,
+    ``star_member`` the vertex in each slot). Block row ``a`` holds its blocks ``(a, b)``, ``b``
+    increasing, each with ``d = 0..2`` in every one of its three rows: entry ``(c, d)`` of
+    block ``(a, b)`` lies at ``offset(a, b) + c stride[a] + d`` of the data, with sorted CSR
+    ``indices`` and ``indptr`` over the ``3V`` dofs (vertex-major). ``star_off`` gives the
+    offset of every pair of slots of every star (``n^2`` pairs of a star of ``n`` slots,
+    from ``star_sq_ptr``), ``mirror (2, m)`` every entry above the diagonal with its transpose.
+    """
+
+    def __init__(self, edges: np.ndarray, n_vertices: int):
+        V = int(n_vertices)
+        centers = np.concatenate([edges[0], edges[1]])
+        members = np.concatenate([edges[1], edges[0]])
+        valence = np.bincount(centers, minlength=V)
+        order = np.lexsort((members, centers))
+        star_ptr = np.zeros(V + 1, dtype=np.int64)
+        np.cumsum(valence + 1, out=star_ptr[1:])
+        n_slots = int(star_ptr[-1])
+        star_center = np.repeat(np.arange(V), valence + 1)
+        star_member = np.empty(n_slots, dtype=np.int64)
+        is_self = np.zeros(n_slots, dtype=bool)
+        is_self[star_ptr[:-1]] = True
+        star_member[is_self] = np.arange(V)
+        star_member[~is_self] = members[order]
+        slot_keys = star_center * V + star_member
+        self._slot_sorter = np.argsort(slot_keys)
+        self._slot_keys = slot_keys[self._slot_sorter]
+        self.V, self.star_ptr, self.star_member = V, star_ptr, star_member
+        # the blocks: every pair of slots of every star, sorted
+        n = np.diff(star_ptr)
+        self.star_sq_ptr = np.zeros(V + 1, dtype=np.int64)
+        np.cumsum(n * n, out=self.star_sq_ptr[1:])
+        owner = np.repeat(np.arange(V), n * n)
+        within = np.arange(self.star_sq_ptr[-1]) - self.star_sq_ptr[owner]
+        row = star_member[star_ptr[owner] + within // n[owner]]
+        col = star_member[star_ptr[owner] + within % n[owner]]
+        self._keys = keys = np.unique(row * V + col)
+        brow, bcol = keys // V, keys % V
+        self._bptr = bptr = np.zeros(V + 1, dtype=np.int64)
+        np.cumsum(np.bincount(brow, minlength=V), out=bptr[1:])
+        nbl = np.diff(bptr)
+        self.stride = 3 * nbl
+        self.star_off = self.offset(row, col)
+        self.n_data = 9 * len(keys)
+        self.indices = np.empty(self.n_data, dtype=np.int32)
+        first = self.offset(brow, bcol)
+        for c in range(3):
+            for d in range(3):
+                self.indices[first + c * self.stride[brow] + d] = 3 * bcol + d
+        rows = (9 * bptr[:-1, None] + 3 * np.arange(3) * nbl[:, None]).ravel()
+        self.indptr = np.append(rows, self.n_data).astype(np.int32)
+        row_of = np.repeat(np.arange(3 * V), np.diff(self.indptr))
+        upper = np.flatnonzero(self.indices > row_of)
+        transposed = sp.csr_matrix((np.arange(self.n_data, dtype=np.float64), self.indices,
+                                    self.indptr), shape=(3 * V, 3 * V)).T.tocsr()
+        transposed.sort_indices()
+        self.mirror = np.stack([upper, transposed.data.astype(np.int64)[upper]])
+
+    def slot(self, center, member):
+        """Global star slot of vertex ``member`` in the star of ``center`` (arrays)."""
+        return self._slot_sorter[np.searchsorted(self._slot_keys, center * self.V + member)]
+
+    def offset(self, a, b):
+        """Position of entry ``(0, 0)`` of block ``(a, b)`` in the CSR data (arrays)."""
+        k = np.searchsorted(self._keys, a * self.V + b)
+        return 9 * self._bptr[a] + 3 * (k - self._bptr[a])
+
+    def element_maps(self, FT: np.ndarray):
+        """For faces ``FT (3, F)``: the star slot of every corner in the stars of the three
+        corners ``(3 centres, 3 corners, F)`` and the offsets of the blocks of every pair of
+        corners ``(3, 3, F)``."""
+        slot = np.stack([np.stack([self.slot(FT[p], FT[a]) for a in range(3)]) for p in range(3)])
+        off = np.stack([np.stack([self.offset(FT[p], FT[q]) for q in range(3)]) for p in range(3)])
+        return slot, off
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        n = 3 * self.V
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
 
 
 class _Plan:
-    """Index arrays of one mesh, built once: stars, block pattern, scatter maps, CSR layout.
-
-    A vertex's *star* is the vertex itself (slot 0) followed by its neighbours; the star slots
-    of all vertices are numbered consecutively (``V + 2E`` slots). Block ``(a, b)`` of the
-    Hessian pattern exists iff ``a`` and ``b`` lie in a common star.
-    """
+    """Index arrays of one mesh, built once: hinges and faces in a memory-local order, and the
+    Hessian's :class:`StarPattern` with the offsets of every element's blocks in it."""
 
     def __init__(self, FT: np.ndarray, HT: np.ndarray, n_vertices: int):
         V = n_vertices
@@ -233,75 +316,15 @@ class _Plan:
                     self._hessian_ready = True
 
     def _build_hessian_plan(self):
-        """The block pattern (union of the stars' squares) as a CSR layout, and for every
-        hinge, face and star the offsets of its blocks in the CSR data
-        (:func:`.kernels.juelicher_hessian`)."""
-        V, FT, HT, valence = self.V, self.FT, self.HT, self._valence
-        # stars: slot 0 the vertex, then its neighbours in increasing order
-        centers = np.concatenate([HT[0], HT[1]])
-        members = np.concatenate([HT[1], HT[0]])
-        order = np.lexsort((members, centers))
-        star_ptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(valence + 1, out=star_ptr[1:])
-        n_slots = int(star_ptr[-1])
-        star_center = np.repeat(np.arange(V), valence + 1)
-        star_member = np.empty(n_slots, dtype=np.int64)
-        is_self = np.zeros(n_slots, dtype=bool)
-        is_self[star_ptr[:-1]] = True
-        star_member[is_self] = np.arange(V)
-        star_member[~is_self] = members[order]
-        slot_keys = star_center * V + star_member
-        slot_sorter = np.argsort(slot_keys)
-
-        def slot(c, m):  # star slot of vertex m in the star of vertex c
-            return slot_sorter[np.searchsorted(slot_keys[slot_sorter], c * V + m)]
-
-        self.star_ptr, self.star_member = star_ptr, star_member
-        self.hinge_slot = np.stack([np.stack([slot(HT[s], HT[a]) for a in range(4)])
+        """The star pattern of the Hessian and the offsets of every hinge's and face's blocks
+        in its CSR data (:func:`.kernels.juelicher_hessian`)."""
+        HT, FT = self.HT, self.FT
+        pattern = self.pattern = StarPattern(HT[:2], self.V)
+        self.hinge_slot = np.stack([np.stack([pattern.slot(HT[s], HT[a]) for a in range(4)])
                                     for s in range(2)])  # (2 end points, 4 hinge vertices, E)
-        self.face_slot = np.stack([np.stack([slot(FT[p], FT[a]) for a in range(3)])
-                                   for p in range(3)])  # (3 centres, 3 corners, F)
-        # the pattern's blocks (a, b), sorted: every pair of slots of every star
-        n = np.diff(star_ptr)
-        self.star_sq_ptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(n * n, out=self.star_sq_ptr[1:])
-        owner = np.repeat(np.arange(V), n * n)
-        within = np.arange(self.star_sq_ptr[-1]) - self.star_sq_ptr[owner]
-        row = star_member[star_ptr[owner] + within // n[owner]]
-        col = star_member[star_ptr[owner] + within % n[owner]]
-        pair_keys = row * V + col
-        keys = np.unique(pair_keys)
-        brow = keys // V
-        bptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(np.bincount(brow, minlength=V), out=bptr[1:])
-        nbl = np.diff(bptr)
-        self.stride = 3 * nbl  # block row a: entry (c, d) of its k-th block at 9 bptr[a] + 3 k + c stride[a] + d
-
-        def offset(a, b):  # position of entry (0, 0) of block (a, b) in the CSR data
-            k = np.searchsorted(keys, a * V + b)
-            return 9 * bptr[a] + 3 * (k - bptr[a])
-
-        self.star_off = offset(row, col)
-        self.hinge_off = np.stack([np.stack([offset(HT[p], HT[q]) for q in range(4)]) for p in range(4)])
-        self.face_off = np.stack([np.stack([offset(FT[p], FT[q]) for q in range(3)]) for p in range(3)])
-        # CSR indices: row 3 a + c holds the blocks (a, b), b increasing, each with d = 0..2
-        bcol = keys % V
-        rows3 = (3 * bptr[:-1, None] * 3 + 3 * np.arange(3) * nbl[:, None]).ravel()
-        indices = np.empty(9 * len(keys), dtype=np.int32)
-        k = np.arange(len(keys))
-        for c in range(3):
-            for d in range(3):
-                indices[9 * bptr[brow] + 3 * (k - bptr[brow]) + c * self.stride[brow] + d] = 3 * bcol + d
-        self.indices = indices
-        self.indptr = np.append(rows3, 9 * len(keys)).astype(np.int32)
-        self.n_data = 9 * len(keys)
-        # every entry above the diagonal and its transpose
-        row_of = np.repeat(np.arange(3 * V), np.diff(self.indptr))
-        upper = np.flatnonzero(indices > row_of)
-        transposed = sp.csr_matrix((np.arange(self.n_data, dtype=np.float64), indices,
-                                    self.indptr), shape=(3 * V, 3 * V)).T.tocsr()
-        transposed.sort_indices()
-        self.mirror = np.stack([upper, transposed.data.astype(np.int64)[upper]])
+        self.hinge_off = np.stack([np.stack([pattern.offset(HT[p], HT[q]) for q in range(4)])
+                                   for p in range(4)])
+        self.face_slot, self.face_off = pattern.element_maps(FT)
 
     # -------------------------------------------------------------- reductions
 
