@@ -41,7 +41,14 @@ with ``m = N v`` and ``psi = v . grad a = (1/2) m . n_hat``,
     Q = [-(m n_hat^T + n_hat m^T) - (n_hat.m) I + 3 (n_hat.m) n_hat n_hat^T] / |n|^2,
 
 where ``P = I - n_hat n_hat^T`` and ``Mv`` has rows ``B_k v``. All of this is exact (no finite
-differences); the tests compare it with central differences.
+differences); the tests compare it with central differences and with energies Surface Evolver
+computed.
+
+Implementation: the value with the gradient and the Hessian are compiled loops over the faces
+and the vertices (:func:`.kernels.star_perp`, :func:`.kernels.star_perp_hessian`, Numba); the
+Hessian is added straight into the data of a CSR matrix whose pattern couples the vertices of
+every star (:class:`.bending.StarPattern`, built on the first call and shared by the copies
+that :meth:`StarPerpBending.with_c0` makes).
 
 Reference: K. A. Brakke, "The Surface Evolver", Experimental Mathematics 1 (1992) 141-165;
 Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvature``.
@@ -49,72 +56,14 @@ Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvat
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import ElementAssembler
-
-
-# The face normal n = (x1 - x0) x (x2 - x0) is quadratic in y = (x0, x1, x2) (corner-major, 9
-# entries): n_k = 1/2 y^T B_k y with B_k[3c+a, 3d+b] = A_cd eps_kab, A the cyclic antisymmetric
-# 3x3 matrix below. Two identities are used instead of the dense B:
-#   dn/dy = N(y), whose 3x3 block at corner c is [e_c]_x with e_c = x_{c+2} - x_{c+1};
-#   sum_k z_k B_k = -A (kron) [z]_x  for any 3-vector z.
-_CORNER_ANTISYM = np.array([[0.0, 1.0, -1.0], [-1.0, 0.0, 1.0], [1.0, -1.0, 0.0]])
-_EYE3 = np.eye(3)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[v]_x`` (``[v]_x w = v x w``) of ``v (..., 3)``, shape ``(..., 3, 3)``."""
-    out = np.zeros(v.shape + (3,))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
-def _normal_jacobian(y: np.ndarray) -> np.ndarray:
-    """``N(y) = dn/dy``, shape ``(F, 3, 9)``; linear in ``y (F, 9)``."""
-    x = y.reshape(-1, 3, 3)
-    e = x[:, [2, 0, 1]] - x[:, [1, 2, 0]]
-    return _skew(e).transpose(0, 2, 1, 3).reshape(-1, 3, 9)
-
-
-def _contract_B(z: np.ndarray) -> np.ndarray:
-    """``sum_k z_k B_k`` for ``z (F, 3)``, shape ``(F, 9, 9)``."""
-    blocks = -_CORNER_ANTISYM[None, :, None, :, None] * _skew(z)[:, None, :, None, :]
-    return blocks.reshape(-1, 9, 9)
-
-
-def _area_hessian(y: np.ndarray, rho: np.ndarray, nhat: np.ndarray, grad_a: np.ndarray):
-    """``N = dn/dy (F, 3, 9)`` and the face-area Hessian ``(F, 9, 9)`` for face coordinates
-    ``y (F, 9)``, given ``rho = |n|``, ``nhat`` and the area gradient ``grad_a (F, 9)``:
-    ``Hess a = (1/2)[(N^T N - 4 grad_a grad_a^T) / rho + sum_k nhat_k B_k]``."""
-    N = _normal_jacobian(y)
-    NtN = np.matmul(N.transpose(0, 2, 1), N)
-    hess_a = 0.5 * ((NtN - 4.0 * grad_a[:, :, None] * grad_a[:, None, :]) / rho[:, None, None]
-                    + _contract_B(nhat))
-    return N, hess_a
-
-
-def _hess_area_directional(N, rho, nhat, v):
-    """Hessian of ``psi = v . grad a`` for constant ``v (F, 9)``: the area's third derivative
-    contracted with ``v``, shape ``(F, 9, 9)`` (formula in the module docstring)."""
-    Nt = N.transpose(0, 2, 1)
-    m = np.matmul(N, v[:, :, None])[:, :, 0]
-    Mv = _normal_jacobian(v)
-    P = _EYE3 - nhat[:, :, None] * nhat[:, None, :]
-    PN = np.matmul(P, N) / rho[:, None, None]
-    cross = np.matmul(Mv.transpose(0, 2, 1), PN)
-    Pm = np.matmul(P, m[:, :, None])[:, :, 0] / rho[:, None]
-    nm = np.einsum("fk,fk->f", nhat, m)
-    Q = (-(m[:, :, None] * nhat[:, None, :] + nhat[:, :, None] * m[:, None, :])
-         - nm[:, None, None] * _EYE3 + 3.0 * nm[:, None, None] * nhat[:, :, None] * nhat[:, None, :])
-    Q /= (rho ** 2)[:, None, None]
-    NQN = np.matmul(Nt, np.matmul(Q, N))
-    return 0.5 * (cross + cross.transpose(0, 2, 1) + _contract_B(Pm) + NQN)
+from . import kernels
+from .bending import StarPattern
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,8 +99,9 @@ class StarPerpBending:
     c0: float | np.ndarray = 2.0
     vertices: np.ndarray | None = None
     _tables: dict | None = field(default=None, repr=False)
-    """Topology tables (face assembler; Hessian pattern once built), shared by the copies that
-    ``dataclasses.replace`` makes (``with_c0`` in the c0 cycle), as ``Bending._plan`` is."""
+    """Topology tables (faces coordinate-major; the Hessian's pattern once built), shared by the
+    copies that ``dataclasses.replace`` makes (``with_c0`` in the c0 cycle), as
+    ``Bending._plan`` is."""
     _weight: np.ndarray = field(init=False, repr=False)
     _h0: np.ndarray = field(init=False, repr=False)
 
@@ -180,7 +130,10 @@ class StarPerpBending:
         object.__setattr__(self, "_h0", 0.5 * c0)
         object.__setattr__(self, "_weight", weight)
         if self._tables is None:  # the Hessian pattern is added on the first hessian() call
-            object.__setattr__(self, "_tables", {"face_asm": ElementAssembler(faces, V)})
+            if faces.min() < 0 or faces.max() >= V:
+                raise ValueError(f"faces must index vertices in [0, {V}), got range "
+                                 f"[{faces.min()}, {faces.max()}]")
+            object.__setattr__(self, "_tables", {"FT": np.ascontiguousarray(faces.T)})
 
     @classmethod
     def from_evolver(cls, faces, n_vertices, modulus: float, h_zero=0.0, vertices=None):
@@ -198,160 +151,55 @@ class StarPerpBending:
         """Evolver's ``h_zero`` per vertex, ``c0 / 2``, shape ``(V,)``."""
         return self._h0.copy()
 
-    # -- per-vertex quantities -------------------------------------------------------------
-    @staticmethod
-    def _hessian_pattern(faces, V):
-        """Index maps built once for the Hessian.
+    def with_c0(self, c0) -> "StarPerpBending":
+        """The same term with spontaneous curvature ``c0`` (sharing the Hessian's pattern)."""
+        return dataclasses.replace(self, c0=c0)
 
-        ``J`` (the (7V, 3V) Jacobian of q = (F, M, S)) is stored in CSR order: the seven rows of
-        vertex ``i`` share the same sorted columns, the dofs of its closed 1-ring, so its data
-        for vertex ``i`` is one contiguous ``7 x w_i`` block. Vertices are grouped by ``w_i``;
-        each group's ``J_i^T D_i J_i`` blocks and the per-face second-order terms are summed
-        into one CSR pattern with one ``bincount``.
-        """
-        nf = len(faces)
-        n_dofs = 3 * V
-        rows = 7 * faces[:, :, None, None] + np.arange(7)[None, None, :, None]  # (F,3,7,1)
-        cols = (3 * faces[:, None, :, None] + np.arange(3)).reshape(nf, 1, 1, 9)  # (F,1,1,9)
-        rows, cols = np.broadcast_arrays(rows, cols)
-        jkey = rows.ravel() * n_dofs + cols.ravel()
-        junique, jslot = np.unique(jkey, return_inverse=True)
-        jcols = junique % n_dofs
-        jptr = np.zeros(7 * V + 1, dtype=np.int64)
-        np.cumsum(np.bincount(junique // n_dofs, minlength=7 * V), out=jptr[1:])
-        width = jptr[7 * np.arange(V) + 1] - jptr[7 * np.arange(V)]
-        groups, keys = [], []
-        for w in np.unique(width):
-            verts = np.flatnonzero(width == w)
-            start = jptr[7 * verts]
-            gather = start[:, None] + np.arange(7 * w)  # (n, 7w): the 7 x w block, row-major
-            ring = jcols[start[:, None] + np.arange(w)]  # (n, w) dofs of the closed ring
-            groups.append((verts, int(w), gather))
-            keys.append((ring[:, :, None] * n_dofs + ring[:, None, :]).ravel())
-        fdofs = (3 * faces[:, :, None] + np.arange(3)).reshape(nf, 9)
-        keys.append((fdofs[:, :, None] * n_dofs + fdofs[:, None, :]).ravel())
-        unique, slot = np.unique(np.concatenate(keys), return_inverse=True)
-        indices = (unique % n_dofs).astype(np.int32)
-        indptr = np.zeros(n_dofs + 1, dtype=np.int64)
-        np.cumsum(np.bincount(unique // n_dofs, minlength=n_dofs), out=indptr[1:])
-        return {"jslot": jslot.ravel(), "jnnz": len(junique), "groups": groups,
-                "slot": slot.ravel(), "nnz": len(unique), "indices": indices, "indptr": indptr}
-
-    def _vertex_sums(self, X):
-        """Face data ``(x, e, n, rho, nhat, grad_a)`` and the vertex sums ``F, M (V, 3)``, ``S (V,)``.
-
-        ``e[:, c] = x_{c+2} - x_{c+1}`` is the edge opposite corner ``c``; the area gradient at
-        corner ``c`` is ``grad_a[:, c] = (1/2) n_hat x e_c``.
-        """
-        X = np.asarray(X, dtype=np.float64)
-        x = X[self.faces]  # (F, 3, 3)
-        e = x[:, [2, 0, 1]] - x[:, [1, 2, 0]]
-        n = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
-        rho = np.sqrt(np.einsum("fk,fk->f", n, n))
-        nhat = n / rho[:, None]
-        grad_a = 0.5 * np.cross(nhat[:, None, :], e)  # (F, 3 corners, 3)
-        V = self.n_vertices
-        idx = self.faces.ravel()  # (face, corner) pairs, corner-fastest
-        F = np.stack([np.bincount(idx, weights=grad_a[:, :, k].ravel(), minlength=V)
-                      for k in range(3)], axis=1)
-        M = np.stack([np.bincount(idx, weights=np.repeat(0.5 * n[:, k], 3), minlength=V)
-                      for k in range(3)], axis=1)
-        S = np.bincount(idx, weights=np.repeat(0.5 * rho, 3), minlength=V)
-        return (x, e, n, rho, nhat, grad_a), F, M, S
-
-    def _curvature(self, F, M):
-        u = np.einsum("vk,vk->v", F, M)
-        w = np.einsum("vk,vk->v", M, M)
-        ok = w > 0.0
-        w_safe = np.where(ok, w, 1.0)
-        h = np.where(ok, 1.5 * u / w_safe, 0.0)  # Evolver: nn == 0 -> h = 0
-        return h, u, w_safe, ok
+    # -- energy interface --------------------------------------------------------------------
+    def _positions(self, X):
+        return kernels.positions(X, self.n_vertices)
 
     def mean_curvature(self, X) -> np.ndarray:
         """Evolver's vertex mean curvature ``h = (1/2) F.N / N.N``, shape ``(V,)``."""
-        _, F, M, _ = self._vertex_sums(X)
-        return self._curvature(F, M)[0]
+        F, M, _ = kernels._star_perp_sums(self._positions(X), self._tables["FT"])
+        u = np.einsum("vk,vk->v", F, M)
+        w = np.einsum("vk,vk->v", M, M)
+        return np.where(w > 0.0, 1.5 * u / np.where(w > 0.0, w, 1.0), 0.0)
+
+    def _compiled(self, X, gradient: bool):
+        value, G = kernels.star_perp(self._positions(X), self._tables["FT"], self.modulus,
+                                     self._h0, self._weight, gradient)
+        return float(value), G
 
     def value(self, X) -> float:
-        _, F, M, S = self._vertex_sums(X)
-        h = self._curvature(F, M)[0]
-        return float(self.modulus / 3.0 * np.sum(self._weight * S * (h - self._h0) ** 2))
-
-    def _g_derivatives(self, F, M, S, hessian: bool):
-        """First (and second) derivatives of g(F, M, S) per vertex: (V, 7) and (V, 7, 7)."""
-        K = self.modulus * self._weight
-        h, u, w, ok = self._curvature(F, M)
-        r = h - self._h0
-        okf = ok.astype(float)
-        h_F = 1.5 * M / w[:, None] * okf[:, None]
-        h_M = 1.5 * (F / w[:, None] - 2.0 * u[:, None] * M / (w ** 2)[:, None]) * okf[:, None]
-        dh = np.concatenate([h_F, h_M], axis=1)  # (V, 6)
-        dg = np.empty((len(F), 7))
-        dg[:, :6] = (2.0 * K * S * r / 3.0)[:, None] * dh
-        dg[:, 6] = K * r ** 2 / 3.0
-        if not hessian:
-            return dg, None
-        MM = M[:, :, None] * M[:, None, :]
-        h_FM = 1.5 * (_EYE3 / w[:, None, None] - 2.0 * MM / (w ** 2)[:, None, None])
-        FM = F[:, :, None] * M[:, None, :]
-        h_MM = 1.5 * (-2.0 * (FM + FM.transpose(0, 2, 1)) / (w ** 2)[:, None, None]
-                      - 2.0 * u[:, None, None] * _EYE3 / (w ** 2)[:, None, None]
-                      + 8.0 * u[:, None, None] * MM / (w ** 3)[:, None, None])
-        d2h = np.zeros((len(F), 6, 6))
-        d2h[:, :3, 3:] = h_FM
-        d2h[:, 3:, :3] = h_FM.transpose(0, 2, 1)
-        d2h[:, 3:, 3:] = h_MM
-        d2h *= okf[:, None, None]
-        D = np.zeros((len(F), 7, 7))
-        D[:, :6, :6] = (2.0 * K * S / 3.0)[:, None, None] * (dh[:, :, None] * dh[:, None, :]
-                                                              + r[:, None, None] * d2h)
-        D[:, 6, :6] = D[:, :6, 6] = (2.0 * K * r / 3.0)[:, None] * dh
-        return dg, D
+        return self._compiled(X, False)[0]
 
     def gradient(self, X) -> np.ndarray:
-        (x, e, n, rho, nhat, grad_a), F, M, S = self._vertex_sums(X)
-        dg, _ = self._g_derivatives(F, M, S, hessian=False)
-        g = dg[self.faces]  # (F, 3 corners, 7)
-        vF = g[:, :, :3]
-        gM = g[:, :, 3:6].sum(axis=1)
-        gS = g[:, :, 6].sum(axis=1)
-        # Hess(a) vF = 1/2 [(N^T N vF - 4 grad_a (grad_a . vF)) / rho + sum_k nhat_k B_k vF] with
-        # N w = sum_c e_c x w_c, (N^T lam)_c = lam x e_c and (sum_k nhat_k B_k vF)_c = nhat x e_c(vF)
-        Nv = np.cross(e, vF).sum(axis=1)
-        ga_v = np.einsum("fck,fck->f", grad_a, vF)
-        ev = vF[:, [2, 0, 1]] - vF[:, [1, 2, 0]]
-        hv = 0.5 * ((np.cross(Nv[:, None, :], e) - 4.0 * grad_a * ga_v[:, None, None])
-                    / rho[:, None, None] + np.cross(nhat[:, None, :], ev))
-        local = hv + 0.5 * np.cross(gM[:, None, :], e) + gS[:, None, None] * grad_a
-        return self._tables["face_asm"].gradient(local)
+        return self._compiled(X, True)[1]
+
+    def value_and_gradient(self, X) -> tuple[float, np.ndarray]:
+        """Energy and gradient ``(V, 3)`` from one compiled pass (the value is :meth:`value`'s,
+        bit for bit)."""
+        return self._compiled(X, True)
+
+    def _pattern(self):
+        t = self._tables
+        if "pattern" not in t:  # benign race: two threads may both build the same tables
+            FT = t["FT"]
+            lo = np.minimum(FT, np.roll(FT, -1, axis=0)).ravel()
+            hi = np.maximum(FT, np.roll(FT, -1, axis=0)).ravel()
+            keys = np.unique(lo * self.n_vertices + hi)
+            edges = np.stack([keys // self.n_vertices, keys % self.n_vertices])
+            pattern = StarPattern(edges, self.n_vertices)
+            t["face_maps"] = pattern.element_maps(FT)
+            t["pattern"] = pattern
+        return t["pattern"], t["face_maps"]
 
     def hessian(self, X) -> sp.csr_matrix:
-        (x, e, n, rho, nhat, grad_a), F, M, S = self._vertex_sums(X)
-        dg, D = self._g_derivatives(F, M, S, hessian=True)
-        grad_a = grad_a.reshape(-1, 9)
-        N, hess_a = _area_hessian(x.reshape(-1, 9), rho, nhat, grad_a)
-        # J^T D J with J the (7V, 3V) Jacobian of q = (F, M, S): per (face, corner c) the rows of
-        # vertex faces[f, c] are (Hess a)[3c:3c+3, :], N / 2 and grad a.
-        local_J = np.empty((len(self.faces), 3, 7, 9))
-        local_J[:, :, 0:3, :] = hess_a.reshape(-1, 3, 3, 9)
-        local_J[:, :, 3:6, :] = 0.5 * N[:, None]
-        local_J[:, :, 6, :] = grad_a[:, None, :]
-        pat = self._tables.get("hessian")
-        if pat is None:
-            pat = self._tables["hessian"] = self._hessian_pattern(self.faces, self.n_vertices)
-        jdata = np.bincount(pat["jslot"], weights=local_J.ravel(), minlength=pat["jnnz"])
-        parts = []
-        for verts, w, gather in pat["groups"]:
-            Ji = jdata[gather].reshape(-1, 7, w)
-            parts.append(np.matmul(Ji.transpose(0, 2, 1), np.matmul(D[verts], Ji)).ravel())
-        # sum_k (dg/dq_k) Hess(q_k), gathered per face: the corner sums of dg enter linearly
-        g = dg[self.faces]
-        vF = g[:, :, :3].reshape(-1, 9)
-        gM = g[:, :, 3:6].sum(axis=1)
-        gS = g[:, :, 6].sum(axis=1)
-        local = (_hess_area_directional(N, rho, nhat, vF) + 0.5 * _contract_B(gM)
-                 + gS[:, None, None] * hess_a)
-        parts.append(local.ravel())
-        data = np.bincount(pat["slot"], weights=np.concatenate(parts), minlength=pat["nnz"])
-        n_dofs = 3 * self.n_vertices
-        return sp.csr_matrix((data, pat["indices"], pat["indptr"]), shape=(n_dofs, n_dofs))
+        """Exact Hessian (not projected), CSR ``(3V, 3V)`` with a fixed pattern."""
+        s, (face_slot, face_off) = self._pattern()
+        data = kernels.star_perp_hessian(self._positions(X), self._tables["FT"], self.modulus,
+                                         self._h0, self._weight, face_slot, face_off,
+                                         s.star_ptr, s.star_member, s.star_sq_ptr, s.star_off,
+                                         s.stride, s.mirror, np.empty(s.n_data))
+        return s.matrix(data)

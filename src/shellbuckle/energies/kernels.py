@@ -456,3 +456,281 @@ def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, fac
         data[up] = mean
         data[lo] = mean
     return data
+
+
+# ------------------------------------------------------------------ star_perp_sq_mean_curvature
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _face_geometry(X, FT, f, e, ga):
+    """Face ``f``: fills ``e[c] = x_{c+2} - x_{c+1}`` (edge opposite corner ``c``) and the
+    area gradient ``ga[c] = nhat x e_c / 2``; returns ``(n0, n1, n2, rho)`` with ``n`` the
+    area vector ``(x1 - x0) x (x2 - x0)`` and ``rho = |n|``."""
+    p, q, r = FT[0, f], FT[1, f], FT[2, f]
+    for k in range(3):
+        e[0, k] = X[r, k] - X[q, k]
+        e[1, k] = X[p, k] - X[r, k]
+        e[2, k] = X[q, k] - X[p, k]
+    u0, u1, u2 = X[q, 0] - X[p, 0], X[q, 1] - X[p, 1], X[q, 2] - X[p, 2]
+    v0, v1, v2 = X[r, 0] - X[p, 0], X[r, 1] - X[p, 1], X[r, 2] - X[p, 2]
+    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    rho = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    h0, h1, h2 = n0 / rho, n1 / rho, n2 / rho
+    for c in range(3):
+        ga[c, 0] = 0.5 * (h1 * e[c, 2] - h2 * e[c, 1])
+        ga[c, 1] = 0.5 * (h2 * e[c, 0] - h0 * e[c, 2])
+        ga[c, 2] = 0.5 * (h0 * e[c, 1] - h1 * e[c, 0])
+    return n0, n1, n2, rho
+
+
+@njit(cache=True, nogil=True)
+def _star_perp_sums(X, FT):
+    """Evolver's vertex sums: ``F`` (area gradient), ``M`` (half area vectors), ``S`` (star
+    area), :mod:`.evolver_bending`."""
+    V = X.shape[0]
+    Fv, Mv, S = np.zeros((V, 3)), np.zeros((V, 3)), np.zeros(V)
+    e, ga = np.empty((3, 3)), np.empty((3, 3))
+    for f in range(FT.shape[1]):
+        n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
+        for c in range(3):
+            v = FT[c, f]
+            for k in range(3):
+                Fv[v, k] += ga[c, k]
+            Mv[v, 0] += 0.5 * n0
+            Mv[v, 1] += 0.5 * n1
+            Mv[v, 2] += 0.5 * n2
+            S[v] += 0.5 * rho
+    return Fv, Mv, S
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _star_perp_vertex(Fv, Mv, S, v, modulus, h0, weight, dh, dg, D, hessian):
+    """The vertex term ``g = modulus weight S (h - h0)^2 / 3`` of ``v``: returns it and fills its
+    derivatives by ``q = (F, M, S)``, ``dg (7)`` and, with ``hessian``, ``D (7, 7)`` (``dh (6)``
+    scratch: the derivatives of ``h``)."""
+    u = Fv[v, 0] * Mv[v, 0] + Fv[v, 1] * Mv[v, 1] + Fv[v, 2] * Mv[v, 2]
+    w = Mv[v, 0] * Mv[v, 0] + Mv[v, 1] * Mv[v, 1] + Mv[v, 2] * Mv[v, 2]
+    ok = w > 0.0
+    if not ok:
+        w = 1.0
+    h = 1.5 * u / w if ok else 0.0  # Evolver: h = 0 where M = 0
+    r = h - h0[v]
+    K = modulus * weight[v]
+    dh[:] = 0.0
+    if ok:
+        for k in range(3):
+            dh[k] = 1.5 * Mv[v, k] / w
+            dh[3 + k] = 1.5 * (Fv[v, k] / w - 2.0 * u * Mv[v, k] / (w * w))
+    for k in range(6):
+        dg[k] = (2.0 * K * S[v] * r / 3.0) * dh[k]
+    dg[6] = K * r * r / 3.0
+    if hessian:
+        cS, cr = 2.0 * K * S[v] / 3.0, 2.0 * K * r / 3.0
+        for a in range(6):
+            for b in range(6):
+                D[a, b] = cS * dh[a] * dh[b]
+            D[a, 6] = cr * dh[a]
+            D[6, a] = cr * dh[a]
+        D[6, 6] = 0.0
+        if ok:
+            w2, w3 = w * w, w * w * w
+            for a in range(3):
+                for b in range(3):
+                    MM = Mv[v, a] * Mv[v, b]
+                    eye = 1.0 if a == b else 0.0
+                    h_FM = 1.5 * (eye / w - 2.0 * MM / w2)
+                    h_MM = 1.5 * (-2.0 * (Fv[v, a] * Mv[v, b] + Mv[v, a] * Fv[v, b]) / w2
+                                  - 2.0 * u * eye / w2 + 8.0 * u * MM / w3)
+                    D[a, 3 + b] += cS * r * h_FM
+                    D[3 + b, a] += cS * r * h_FM
+                    D[3 + a, 3 + b] += cS * r * h_MM
+    return modulus * weight[v] * S[v] * r * r / 3.0
+
+
+@njit(cache=True, nogil=True)
+def star_perp(X, FT, modulus, h0, weight, gradient):
+    """Surface Evolver's ``star_perp_sq_mean_curvature``, ``sum_v modulus weight_v S_v
+    (h_v - h0_v)^2 / 3``, and its gradient (:mod:`.evolver_bending` for the formulas;
+    ``h0``, ``weight`` per vertex). Returns ``(value, G)``, ``G (0, 3)`` without
+    ``gradient``."""
+    V = X.shape[0]
+    Fv, Mv, S = _star_perp_sums(X, FT)
+    dgv = np.empty((V if gradient else 0, 7))
+    dh, dg, D = np.empty(6), np.empty(7), np.empty((7, 7))
+    value = 0.0
+    for v in range(V):
+        value += _star_perp_vertex(Fv, Mv, S, v, modulus, h0, weight, dh, dg, D, False)
+        if gradient:
+            dgv[v] = dg
+    G = np.zeros((V if gradient else 0, 3))
+    if not gradient:
+        return value, G
+    e, ga, vF, ev = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    for f in range(FT.shape[1]):
+        n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
+        h = (n0 / rho, n1 / rho, n2 / rho)  # nhat
+        gM0 = gM1 = gM2 = gS = 0.0
+        for c in range(3):
+            v = FT[c, f]
+            for k in range(3):
+                vF[c, k] = dgv[v, k]
+            gM0 += dgv[v, 3]
+            gM1 += dgv[v, 4]
+            gM2 += dgv[v, 5]
+            gS += dgv[v, 6]
+        # Hess(a) vF = 1/2 [(N^T N vF - 4 grad_a (grad_a . vF)) / rho + nhat x (vF_{c+2} - vF_{c+1})]
+        Nv0 = Nv1 = Nv2 = ga_v = 0.0
+        for c in range(3):
+            Nv0 += e[c, 1] * vF[c, 2] - e[c, 2] * vF[c, 1]
+            Nv1 += e[c, 2] * vF[c, 0] - e[c, 0] * vF[c, 2]
+            Nv2 += e[c, 0] * vF[c, 1] - e[c, 1] * vF[c, 0]
+            ga_v += ga[c, 0] * vF[c, 0] + ga[c, 1] * vF[c, 1] + ga[c, 2] * vF[c, 2]
+            for k in range(3):
+                ev[c, k] = vF[(c + 2) % 3, k] - vF[(c + 1) % 3, k]
+        for c in range(3):
+            v = FT[c, f]
+            cr0 = Nv1 * e[c, 2] - Nv2 * e[c, 1]
+            cr1 = Nv2 * e[c, 0] - Nv0 * e[c, 2]
+            cr2 = Nv0 * e[c, 1] - Nv1 * e[c, 0]
+            G[v, 0] += (0.5 * ((cr0 - 4.0 * ga[c, 0] * ga_v) / rho + (h[1] * ev[c, 2] - h[2] * ev[c, 1]))
+                        + 0.5 * (gM1 * e[c, 2] - gM2 * e[c, 1]) + gS * ga[c, 0])
+            G[v, 1] += (0.5 * ((cr1 - 4.0 * ga[c, 1] * ga_v) / rho + (h[2] * ev[c, 0] - h[0] * ev[c, 2]))
+                        + 0.5 * (gM2 * e[c, 0] - gM0 * e[c, 2]) + gS * ga[c, 1])
+            G[v, 2] += (0.5 * ((cr2 - 4.0 * ga[c, 2] * ga_v) / rho + (h[0] * ev[c, 1] - h[1] * ev[c, 0]))
+                        + 0.5 * (gM0 * e[c, 1] - gM1 * e[c, 0]) + gS * ga[c, 2])
+    return value, G
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _skew_into(S, v0, v1, v2):
+    """``S = [v]_x`` (``[v]_x w = v x w``)."""
+    S[0, 0], S[0, 1], S[0, 2] = 0.0, -v2, v1
+    S[1, 0], S[1, 1], S[1, 2] = v2, 0.0, -v0
+    S[2, 0], S[2, 1], S[2, 2] = -v1, v0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr, star_member,
+                      star_sq_ptr, star_off, stride, mirror, data):
+    """Exact Hessian of :func:`star_perp`, ``J^T D J + sum_k (dg/dq_k) Hess(q_k)``
+    (:mod:`.evolver_bending`), added into the CSR ``data`` of a star pattern (zeroed first;
+    layout and arguments as in :func:`juelicher_hessian`). Per face, with ``E_c = [e_c]_x``:
+    ``Hess a`` has blocks ``((e_c . e_d) I - e_d e_c^T - 4 ga_c ga_d^T) / (2 rho)
+    - A_cd [nhat]_x / 2`` (``A`` the cyclic antisymmetric 3x3 matrix of the corners), and the
+    third derivative contracted with ``v`` has blocks ``(C_cd + C_dc^T - A_cd [P m / rho]_x
+    + E_c^T Q E_d) / 2`` with ``C_cd = [v_{c+2} - v_{c+1}]_x^T P E_d / rho``."""
+    V, nf = X.shape[0], FT.shape[1]
+    data[:] = 0.0
+    Fv, Mv, S = _star_perp_sums(X, FT)
+    dgv, Dv = np.empty((V, 7)), np.empty((V, 7, 7))
+    dh = np.empty(6)
+    for v in range(V):
+        _star_perp_vertex(Fv, Mv, S, v, modulus, h0, weight, dh, dgv[v], Dv[v], True)
+    J = np.zeros((star_member.shape[0], 7, 3))  # per star slot: the 7 x 3 block of J
+    A = np.array([[0.0, 1.0, -1.0], [-1.0, 0.0, 1.0], [1.0, -1.0, 0.0]])
+    e, ga, vF = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    E, EV, PE, QE = np.empty((3, 3, 3)), np.empty((3, 3, 3)), np.empty((3, 3, 3)), np.empty((3, 3, 3))
+    HA, L = np.empty((3, 3, 3, 3)), np.empty((3, 3))
+    P, Q, Sn, Sm, Sg = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    nh, m = np.empty(3), np.empty(3)
+    for f in range(nf):
+        n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
+        nh[0], nh[1], nh[2] = n0 / rho, n1 / rho, n2 / rho
+        _skew_into(Sn, nh[0], nh[1], nh[2])
+        for c in range(3):
+            _skew_into(E[c], e[c, 0], e[c, 1], e[c, 2])
+        for c in range(3):
+            for d in range(3):
+                ecd = e[c, 0] * e[d, 0] + e[c, 1] * e[d, 1] + e[c, 2] * e[d, 2]
+                for i in range(3):
+                    for j in range(3):
+                        val = ((ecd if i == j else 0.0) - e[d, i] * e[c, j]
+                               - 4.0 * ga[c, i] * ga[d, j]) / rho - A[c, d] * Sn[i, j]
+                        HA[c, d, i, j] = 0.5 * val
+        # the rows of J of the three corners' vertices: F (Hess a), M (N / 2), S (grad a)
+        for c in range(3):
+            for a in range(3):
+                slot = face_slot[c, a, f]
+                for d in range(3):
+                    for k in range(3):
+                        J[slot, k, d] += HA[c, a, k, d]
+                        J[slot, 3 + k, d] += 0.5 * E[a, k, d]
+                    J[slot, 6, d] += ga[a, d]
+        # sum_k (dg/dq_k) Hess(q_k): Hess(vF . grad a) + Hess(gM . n / 2) + gS Hess(a)
+        gS = 0.0
+        gM0 = gM1 = gM2 = 0.0
+        for c in range(3):
+            v = FT[c, f]
+            for k in range(3):
+                vF[c, k] = dgv[v, k]
+            gM0 += dgv[v, 3]
+            gM1 += dgv[v, 4]
+            gM2 += dgv[v, 5]
+            gS += dgv[v, 6]
+        _skew_into(Sg, gM0, gM1, gM2)
+        m[:] = 0.0
+        for c in range(3):
+            m[0] += e[c, 1] * vF[c, 2] - e[c, 2] * vF[c, 1]
+            m[1] += e[c, 2] * vF[c, 0] - e[c, 0] * vF[c, 2]
+            m[2] += e[c, 0] * vF[c, 1] - e[c, 1] * vF[c, 0]
+            _skew_into(EV[c], vF[(c + 2) % 3, 0] - vF[(c + 1) % 3, 0],
+                       vF[(c + 2) % 3, 1] - vF[(c + 1) % 3, 1], vF[(c + 2) % 3, 2] - vF[(c + 1) % 3, 2])
+        nm = nh[0] * m[0] + nh[1] * m[1] + nh[2] * m[2]
+        for i in range(3):
+            for j in range(3):
+                P[i, j] = (1.0 if i == j else 0.0) - nh[i] * nh[j]
+                Q[i, j] = (-(m[i] * nh[j] + nh[i] * m[j]) - (nm if i == j else 0.0)
+                           + 3.0 * nm * nh[i] * nh[j]) / (rho * rho)
+        Pm0 = (P[0, 0] * m[0] + P[0, 1] * m[1] + P[0, 2] * m[2]) / rho
+        Pm1 = (P[1, 0] * m[0] + P[1, 1] * m[1] + P[1, 2] * m[2]) / rho
+        Pm2 = (P[2, 0] * m[0] + P[2, 1] * m[1] + P[2, 2] * m[2]) / rho
+        _skew_into(Sm, Pm0, Pm1, Pm2)
+        for d in range(3):
+            for i in range(3):
+                for j in range(3):
+                    PE[d, i, j] = (P[i, 0] * E[d, 0, j] + P[i, 1] * E[d, 1, j]
+                                   + P[i, 2] * E[d, 2, j]) / rho
+                    QE[d, i, j] = Q[i, 0] * E[d, 0, j] + Q[i, 1] * E[d, 1, j] + Q[i, 2] * E[d, 2, j]
+        for c in range(3):
+            for d in range(3):
+                for i in range(3):
+                    for j in range(3):
+                        cross_cd = EV[c, 0, i] * PE[d, 0, j] + EV[c, 1, i] * PE[d, 1, j] + EV[c, 2, i] * PE[d, 2, j]
+                        cross_dc = EV[d, 0, j] * PE[c, 0, i] + EV[d, 1, j] * PE[c, 1, i] + EV[d, 2, j] * PE[c, 2, i]
+                        nqn = E[c, 0, i] * QE[d, 0, j] + E[c, 1, i] * QE[d, 1, j] + E[c, 2, i] * QE[d, 2, j]
+                        L[i, j] = (0.5 * (cross_cd + cross_dc - A[c, d] * Sm[i, j] + nqn)
+                                   - 0.5 * A[c, d] * Sg[i, j] + gS * HA[c, d, i, j])
+                _add_block(data, face_off[c, d, f], stride[FT[c, f]], 1.0, L, False)
+    # J^T D J, vertex by vertex over the pairs of slots of its star
+    DJ = np.empty((64, 7, 3))  # D J of each slot of one star (grown for a larger star)
+    for v in range(V):
+        lo, n = star_ptr[v], star_ptr[v + 1] - star_ptr[v]
+        if n > DJ.shape[0]:
+            DJ = np.empty((n, 7, 3))
+        for b in range(n):
+            for k in range(7):
+                for d in range(3):
+                    acc = 0.0
+                    for l in range(7):
+                        acc += Dv[v, k, l] * J[lo + b, l, d]
+                    DJ[b, k, d] = acc
+        base = star_sq_ptr[v]
+        for a in range(n):
+            row_a = stride[star_member[lo + a]]
+            for b in range(a, n):  # (b, a) is the transpose of (a, b)
+                off_ab, off_ba = star_off[base + a * n + b], star_off[base + b * n + a]
+                row_b = stride[star_member[lo + b]]
+                for c in range(3):
+                    for d in range(3):
+                        acc = 0.0
+                        for k in range(7):
+                            acc += J[lo + a, k, c] * DJ[b, k, d]
+                        data[off_ab + c * row_a + d] += acc
+                        if b != a:
+                            data[off_ba + d * row_b + c] += acc
+    for t in range(mirror.shape[1]):
+        up, lo = mirror[0, t], mirror[1, t]
+        mean = 0.5 * (data[up] + data[lo])
+        data[up] = mean
+        data[lo] = mean
+    return data
