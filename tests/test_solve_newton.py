@@ -267,10 +267,11 @@ def test_newton_is_reproducible():
     assert np.array_equal(a.x, b.x) and a.fun == b.fun and a.nit == b.nit
 
 
-@pytest.mark.parametrize("sigma", [0.01, 0.3])
+@pytest.mark.parametrize("sigma", [0.2, 0.3])
 def test_preconditioned_relaxation_reaches_the_newton_minimum(sigma):
-    # a jiggle of sigma mean edge lengths from the shrunk sphere (0.3: hundreds of negative
-    # eigenvalues at the start); oracles: KKT conditions, dense inertia, plain Newton's minimum
+    # a jiggle of sigma mean edge lengths per coordinate from the shrunk sphere (0.3: hundreds
+    # of negative eigenvalues at the start; both farther than RELAX_ROUGH_MIN_MOVE rms);
+    # oracles: KKT conditions, dense inertia, plain Newton's minimum
     mesh, energy, volume, V0 = shell(4, 1000)
     shrunk = 0.95 ** (1 / 3) * mesh.X
     edge = np.linalg.norm(mesh.X[mesh.faces[:, 0]] - mesh.X[mesh.faces[:, 1]], axis=1).mean()
@@ -480,12 +481,17 @@ def test_a_poorly_conditioned_gauge_is_chosen_again_and_a_fresh_one_is_kept():
     assert np.linalg.cond(rigid_modes(Z)[pinned_dofs(Z)]) > GAUGE_MAX_COND
 
 
-def test_abandon_is_asked_after_the_relaxation_and_each_newton_step_only():
+def test_abandon_is_asked_after_the_relaxation_and_each_newton_step_only(monkeypatch):
     # oracle: the result without the hook. A hook that never objects changes nothing; one that
     # always objects stops right after the relaxation, or after the first Newton step without
-    # one; a converged point is never offered to it.
+    # one; a converged point is never offered to it. (The start is close to the relaxed state:
+    # no smooth-start shortcut here, this is about the relaxation.)
+    import importlib
+
     from shellbuckle.solve.newton import ABANDONED
 
+    monkeypatch.setattr(importlib.import_module("shellbuckle.solve.newton"),
+                        "RELAX_ROUGH_MIN_MOVE", 0.0)
     mesh, energy, volume, V0 = shell(3, 1000)
     shrunk = 0.95 ** (1 / 3) * mesh.X
     X0 = shrunk + 0.01 * np.random.default_rng(5).standard_normal(mesh.X.shape)
@@ -522,6 +528,7 @@ def test_a_relaxation_step_cut_short_asks_abandon_and_a_reason_stops_there(monke
     from shellbuckle.solve.newton import ABANDONED
 
     newton_module = importlib.import_module("shellbuckle.solve.newton")  # not the function
+    monkeypatch.setattr(newton_module, "RELAX_ROUGH_MIN_MOVE", 0.0)  # the relaxation, always
 
     mesh, energy, volume, V0 = shell(3, 1000)
     shrunk = 0.95 ** (1 / 3) * mesh.X
@@ -599,7 +606,9 @@ def test_warm_start_reaches_the_cold_minimum_with_the_held_factorization():
     assert warm.fun == pytest.approx(cold.fun, rel=1e-12)
     assert warm.pressure == pytest.approx(cold.pressure, rel=1e-8)
     assert np.abs(warm.x - cold.x).max() <= 1e-6
-    assert warm.history[0]["step"] == "quasi-newton" and cold.history[0]["step"] == "relax"
+    # the cold start lies at the relaxed state itself: quasi-Newton steps on the Hessian
+    # factored there ("Smooth starts"), one factorization more than with the held one
+    assert warm.history[0]["step"] == "quasi-newton" and cold.history[0]["step"] == "quasi-newton"
     assert n_warm < n_cold
 
 
@@ -659,6 +668,43 @@ def test_a_warm_start_at_a_certified_minimum_of_the_same_energy_certifies_it():
         assert back.factorization is tok
 
 
+def test_a_smooth_start_steps_on_the_hessian_at_the_relaxed_state(monkeypatch):
+    # the protocol without a jiggle: the next volume step starts at the last minimum, whose
+    # certifying factorization the solver still holds. Oracles: KKT conditions, the dense
+    # tangent inertia, the minimum reached through the relaxation; the same bits without the
+    # held factorization (a resumed run), which then factors the same matrix once more
+    import importlib
+
+    newton_module = importlib.import_module("shellbuckle.solve.newton")
+    mesh, energy, volume, V0 = shell(4, 1000)
+    solver = CountingSolver(make_solver())
+    options = dict(solver=solver, pinned=pinned_dofs(mesh.X))
+    first = newton(energy, volume, 0.97 ** (1 / 3) * mesh.X, 0.97 * V0, inertia_step=0.0,
+                   **options)  # certified by a factorization at its very end point
+    assert first.success and np.array_equal(first.factorization.X, first.x)
+    runs, counts = {}, {}
+    for name, token in (("held", first.factorization), ("fresh", None)):
+        n0 = dict(solver.counts)
+        runs[name] = newton(energy, volume, first.x, 0.94 * V0, precondition_at=first.x,
+                            precondition_token=token, history=True, **options)
+        counts[name] = {k: solver.counts[k] - n0[k] for k in n0}
+    monkeypatch.setattr(newton_module, "RELAX_ROUGH_MIN_MOVE", 0.0)  # no smooth start
+    n0 = dict(solver.counts)
+    relaxed = newton(energy, volume, first.x, 0.94 * V0, precondition_at=first.x, history=True,
+                     **options)
+    n_relaxed = sum(solver.counts[k] - n0[k] for k in ("double", "single"))
+    held, fresh = runs["held"], runs["fresh"]
+    assert held.success and held.inertia == 0
+    assert_kkt(energy, volume, held, 0.94 * V0)
+    assert tangent_inertia_dense(energy, volume, held.x) == 0
+    assert np.array_equal(held.x, fresh.x) and held.nit == fresh.nit
+    assert counts["fresh"]["double"] == counts["held"]["double"] + 1
+    assert counts["held"]["double"] + counts["held"]["single"] < n_relaxed
+    assert held.history[0]["step"] == "quasi-newton" and relaxed.history[0]["step"] == "relax"
+    assert held.fun == pytest.approx(relaxed.fun, rel=1e-12)
+    assert np.abs(held.x - relaxed.x).max() <= 1e-6
+
+
 def test_a_stale_warm_start_is_ignored():
     # once the solver no longer holds the factorization (PARDISO keeps the last two in
     # double precision; each minimization below factors at least once in double) the token
@@ -685,9 +731,10 @@ def test_a_stale_warm_start_is_ignored():
     token = kept.factorization
     token.pinned = np.arange(6)
     assert not _fixes_gauge(first.x, token.pinned)
+    n_double = solver.counts["double"]
     res = newton(flat, volume, first.x, V, warm_start=token, solver=solver, pinned=other,
                  precondition_at=first.x, history=True)
-    assert res.history[0]["step"] == "relax"
+    assert solver.counts["double"] > n_double  # the smooth start's own factorization
     assert res.fun == pytest.approx(cold.fun, rel=1e-12)
 
 
@@ -740,6 +787,7 @@ def test_the_thorough_abandon_test_is_asked_after_the_relaxation_and_where_steps
     from shellbuckle.solve.newton import ABANDONED
 
     newton_module = importlib.import_module("shellbuckle.solve.newton")  # not the function
+    monkeypatch.setattr(newton_module, "RELAX_ROUGH_MIN_MOVE", 0.0)  # the relaxation, always
     mesh, energy, volume, V0 = shell(3, 1000)
     X0 = 0.95 ** (1 / 3) * mesh.X + 0.01 * np.random.default_rng(5).standard_normal(mesh.X.shape)
     asked = []

@@ -199,14 +199,14 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
 
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
                                                                       monkeypatch):
-    # max_iter = 1 and no c0 cycle (which can converge a step its first minimization did not):
-    # every minimization stops unconverged, so the protocol warns at each step.
+    # one gradient-descent iteration per minimization (no jiggle retries with it) and no c0
+    # cycle: every minimization stops unconverged, so the protocol warns at each step.
     # As in a fresh worker process, nobody has configured logging (pytest's own handlers on
     # the root logger are set aside for the test).
     import logging
 
     (point,) = SweepSpec(gamma=271, icosphere=3, until=0.04, c0_cycle=False).points()
-    point["max_iter"] = 1
+    point.update(max_iter=1, method="gd")
     logger = logging.getLogger("shellbuckle")
     monkeypatch.setattr(logging.getLogger(), "handlers", [])
     assert not logger.handlers

@@ -256,6 +256,11 @@ class Context:
     pinned: np.ndarray | None = None
     """The six dofs that fix the rigid-motion gauge of every minimization of the run (chosen on
     the reference mesh, :func:`~shellbuckle.solve.newton.pinned_dofs`)."""
+    held: dict = field(default_factory=dict, compare=False, repr=False)
+    """The factorization that the last step's final minimization ended with
+    (``held["token"]``), which the linear solver may still hold: a smooth start of the next
+    step uses it if it was made at exactly that step's start (:func:`step`). A cache, never
+    stored: without it Newton's method factors the same matrix."""
 
 
 @one_blas_thread
@@ -345,7 +350,7 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 
 
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
-              certify: bool = True):
+              certify: bool = True, relaxed_token=None):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
@@ -353,7 +358,9 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     factorizations the linear solver still holds Newton's method then reuses for its first
     steps instead (same ``prerelax`` switch; :mod:`shellbuckle.solve.newton`, "Warm start");
     ``certify=False``: Newton's method stops without factoring to certify the minimum (the
-    c0 = 0 stage of the cycle, whose minimum is neither reported nor kept)."""
+    c0 = 0 stage of the cycle, whose minimum is neither reported nor kept); ``relaxed_token``,
+    the factorization the minimization that ended at ``relaxed`` ended with (Newton's
+    ``precondition_token``, for a start without a jiggle)."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -369,6 +376,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                                                or folded_locally(ctx.contact, X))}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
+            options["precondition_token"] = relaxed_token
         tokens = [w.factorization for w in warm or () if w.factorization is not None]
         if p.prerelax and tokens:
             options["warm_start"] = tokens
@@ -498,7 +506,8 @@ def step(ctx: Context, state: State):
         contact = None
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
         X = jiggle(state.X, sigma, rng)
-        result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X)
+        result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
+                           relaxed_token=ctx.held.get("token"))
         iterations += result.nit
         E_before = result.fun
         # a minimization that gave up on a fold or a tangle is jiggled again at once; one that
@@ -540,6 +549,7 @@ def step(ctx: Context, state: State):
         log.warning("step %d: %s after a jiggle of std %.3g; jiggling again with half of it",
                     k, why, sigma)
         sigma *= 0.5
+    ctx.held["token"] = result.factorization
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,

@@ -608,7 +608,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
            relax_shift: float = RELAX_SHIFT, relax_tol: float = RELAX_TOL,
            relax_rough_shift: float = RELAX_ROUGH_SHIFT, single_precision_steps: bool = True,
            abandon=None, abandon_thorough=None, warm_start=None,
-           certify: bool = True, relax_scaling: bool = True) -> MinimizeResult:
+           certify: bool = True, relax_scaling: bool = True,
+           precondition_token=None) -> MinimizeResult:
     """Minimize ``energy`` over positions ``X (V, 3)`` at enclosed ``volume(X) = V_target``.
 
     Parameters
@@ -706,6 +707,12 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         and gauge, other parameters): the first steps reuse the factorization the solver still
         holds, and the relaxation of ``precondition_at`` is skipped (module docstring, "Warm
         start"). Ignored when the solver has been given another matrix since.
+    precondition_token : object, optional
+        ``result.factorization`` of the minimization that ended at ``precondition_at`` (the
+        previous volume step's): for a smooth start (closer than ``RELAX_ROUGH_MIN_MOVE`` mean
+        edge lengths, rms, to ``precondition_at``) whose solver still holds that
+        factorization, made at exactly ``precondition_at``, it serves the first quasi-Newton
+        steps; without it the same matrix is factored (module docstring, "Smooth starts").
     certify : bool
         With ``escape_saddles`` or ``compute_inertia``, stop only where an unshifted
         double-precision factorization shows inertia 0 (module docstring, "Convergence").
@@ -741,6 +748,9 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     thorough = abandon_thorough or abandon  # the costlier test, asked where it pays
     nt.token = next((t for t in tokens if _warm_ok(t, nt)), None)
     warm = nt.token is not None
+    if precondition_at is not None and not warm and _smooth_start(volume, X, precondition_at):
+        nt.token = _exact_preconditioner(nt, precondition_at, precondition_token)
+        warm = nt.token is not None
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
@@ -955,6 +965,31 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
             full = RELAX_ROUGH_FULL  # the rough stage has done what it can
     log.debug("preconditioned relaxation: %d steps, E=%.15g", n, E)
     return X, E, n, records
+
+
+def _smooth_start(volume, X: np.ndarray, X_ref: np.ndarray) -> bool:
+    """Whether ``X`` lies closer to ``X_ref`` than ``RELAX_ROUGH_MIN_MOVE`` mean edge lengths of
+    ``X_ref`` (root mean square over the vertices, as :func:`_relax` measures it): no jiggle,
+    or a small one."""
+    move = float(np.sqrt(np.mean(np.sum((X - X_ref) ** 2, axis=1))))
+    return move < RELAX_ROUGH_MIN_MOVE * mean_edge_length(np.asarray(volume.faces), X_ref)
+
+
+def _exact_preconditioner(nt, X_ref: np.ndarray, token):
+    """The factorization of the unshifted Hessian of the Lagrangian at ``X_ref`` (double
+    precision, positive definite on the tangent space), for the first quasi-Newton steps of a
+    smooth start (module docstring, "Smooth starts"): ``token`` if the solver still holds it
+    and it was made at exactly ``X_ref`` with this energy, else a new factorization (the same
+    matrix, so the same bits); ``None`` where that matrix has a negative direction."""
+    if (isinstance(token, _Factorization) and not token.approximate and token.mu == 0.0
+            and token.inertia == 0 and token.energy is not None
+            and token.energy() is nt.raw_energy and token.X is not None
+            and np.array_equal(token.X, X_ref) and _warm_ok(token, nt)):
+        return token
+    lam, _, _, gV = nt.gradients(X_ref)
+    nt.assemble(X_ref, lam, gV)
+    ok, inertia = nt.factor(0.0)
+    return nt.token if ok and inertia == 0 else None
 
 
 def _certified(fact, X: np.ndarray, max_displacement: float) -> bool:
