@@ -264,6 +264,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from .lbfgs import SecantPairs
 from .linear import SingularFactorError, make_solver
 from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
                          curvature_search, mean_edge_length, parabola_minimizer,
@@ -760,7 +761,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     if warm and nt.token.certifies(nt.raw_energy, V_target):
         fact = (nt.token.X, 0.0, 0)  # a minimum of this energy, certified by the held factorization
     # with a warm start the held factorization serves the first quasi-Newton steps
-    pairs, n_quasi, quasi_ok, previous, r_history = [], 0, warm, None, []
+    pairs, n_quasi, quasi_ok, previous, r_history = SecantPairs(X.size, memory), 0, warm, None, []
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
@@ -775,7 +776,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
             grad_ok = r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad
             converged = grad_ok and (dE is None or abs(dE) <= tol_energy * abs(E))
             if previous is not None:
-                _add_pair(pairs, X - previous[0], r - previous[1], memory)
+                pairs.add(X - previous[0], r - previous[1])
             r_history.append((r_norm, E))
             need_gradient = False
             if converged and (not want_inertia or _certified(fact, X, inertia_step * edge)):
@@ -820,7 +821,8 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
                 message = "could not make the tangent Hessian positive definite by a shift"
                 break
             mu, inertia, indefinite = shift
-            fact, pairs, n_quasi, quasi_ok = (X, mu, inertia), [], 0, True
+            fact, n_quasi, quasi_ok = (X, mu, inertia), 0, True
+            pairs.clear()
             r_history = [(r_norm, E)]
             if converged and (not escape_saddles or inertia == 0 or not indefinite):
                 success, message = True, "converged"
@@ -922,7 +924,7 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     if nt.factor_positive((rough or shift) * nt.diag_scale, escape_saddles=True,
                           approximate=True) is None:
         return X, E, 0, []
-    pairs, previous, energies, records = [], None, [E], []
+    pairs, previous, energies, records = SecantPairs(X.size, RELAX_MEMORY), None, [E], []
     n, full, cut, tau = 0, 0, 0, 1.0
     while n < max_it:
         if rough is not None and full >= RELAX_ROUGH_FULL:
@@ -935,10 +937,10 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
         if r_norm <= tol_grad * float(np.linalg.norm(gE)) + atol_grad:
             break
         if previous is not None:
-            _add_pair(pairs, X - previous[0], r - previous[1], RELAX_MEMORY)
+            pairs.add(X - previous[0], r - previous[1])
         verr = volume.value(X) - V_target
         quasi = (nt.quasi_newton_step(X, r, pairs, verr, tau)
-                 or nt.quasi_newton_step(X, r, [], verr, tau))
+                 or nt.quasi_newton_step(X, r, None, verr, tau))
         if quasi is None:
             break
         with nt.clock("line_search"):
@@ -1025,15 +1027,6 @@ def _stalled(history: list, window: int = 3, ratio: float = 0.9, progress: float
     if r_new <= ratio * r_old:
         return False
     return E_old - E_new <= progress * (history[0][1] - history[1][1])
-
-
-def _add_pair(pairs: list, s: np.ndarray, y: np.ndarray, memory: int) -> None:
-    """Keep the secant pair ``(s, y, 1/s.y)`` if its curvature ``s.y`` is positive."""
-    s, y = s.ravel(), y.ravel()
-    sy = float(s @ y)
-    if memory > 0 and sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
-        pairs.append((s, y, 1.0 / sy))
-        del pairs[:-memory]
 
 
 def _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step):
@@ -1252,19 +1245,16 @@ class _Newton:
         """L-BFGS step ``p = -H r`` (Nocedal & Wright, Algorithm 7.4) whose initial inverse
         Hessian ``H0`` is the current factorization (the tangent KKT solve, exact at the point
         where it was factored) times ``scale`` (the relaxation's self-scaling) and whose pairs
-        are the steps taken since; ``(p, r.p)``, or ``None`` if ``p`` is not a descent
-        direction."""
-        q = -r.ravel()
-        coefficients = []
-        for s_i, y_i, rho_i in reversed(pairs):
-            a = rho_i * float(s_i @ q)
-            coefficients.append(a)
-            q = q - a * y_i
-        z = self.solve(q[self.free], -verr).ravel()
-        if scale != 1.0:
-            z *= scale
-        for (s_i, y_i, rho_i), a in zip(pairs, reversed(coefficients)):
-            z += (a - rho_i * float(y_i @ z)) * s_i
+        are the steps taken since (a :class:`~.lbfgs.SecantPairs`, or ``None``: none);
+        ``(p, r.p)``, or ``None`` if ``p`` is not a descent direction."""
+
+        def H0(q):
+            z = self.solve(q[self.free], -verr).ravel()
+            if scale != 1.0:
+                z *= scale
+            return z
+
+        z = H0(-r.ravel()) if pairs is None else pairs.apply(-r, H0)
         p = self.without_rigid(X, z.reshape(-1, 3))
         slope = float(np.einsum("ij,ij->", r, p))
         return (p, slope) if slope < 0 else None
