@@ -132,9 +132,10 @@ jiggle is 0.76 edge lengths rms per vertex on the paper's mesh but 2.5 on a 40k-
 (the same absolute amplitude), and there the rough stage's local full steps locked the tangled
 triangles in: every one of three steps folded (and was jiggled again), against none of two
 without the stage; capping its steps at 0.5 or 1 edge length did not help.
-Nor is there a rough stage for a start closer than 0.3 mean edge lengths (rms) to the relaxed
-state (``RELAX_ROUGH_MIN_MOVE``): without a jiggle, or with a small one, there is nothing
-rough to remove.
+A start closer than 0.3 mean edge lengths (rms) to the relaxed state
+(``RELAX_ROUGH_MIN_MOVE``), without a jiggle or with a small one, has nothing rough to remove:
+it is not relaxed at all ("Smooth starts"); the relaxation runs without its rough stage only
+where the exact Hessian at the relaxed state is not positive definite.
 
 With the rough shift ``1e-1 mean|diag K|`` the first 20-30 steps after the jiggle were still
 capped at ``max_step`` (gamma = 271, step 3: the direction moved the median vertex by 1-3
@@ -221,6 +222,24 @@ step at gamma = 271 and 20995, none at 2333 (there the tails of the minimization
 shell by more than ``inertia_step`` along its soft modes); before buckling the return costs
 two quasi-Newton steps and no factorization.
 
+Smooth starts
+-------------
+A start closer than ``RELAX_ROUGH_MIN_MOVE`` (0.3) mean edge lengths (rms) to
+``precondition_at`` has no roughness to relax: the protocol without a jiggle (as in the
+comparison with Surface Evolver), where a volume step moves the vertices by about 0.1 edge
+lengths. Its first steps are quasi-Newton steps whose initial inverse Hessian is the
+unshifted Hessian of the Lagrangian at ``precondition_at`` (a minimum of the previous volume
+step, positive definite on the tangent space), factored in double precision: the
+factorization that certified that minimum when the linear solver still holds it and it was
+made at exactly that point (``precondition_token``; the protocol passes the last step's),
+else the same matrix factored again, which gives the same bits, so a run resumed from its
+store repeats the uninterrupted run exactly. Where that matrix is not positive definite the
+relaxation runs as for a rough start. Before buckling a volume step then costs one
+factorization, the certification of its minimum, instead of three (the relaxation's, a first
+Newton step's and the certification): on the paper's mesh with Surface Evolver's bending
+energy and the c0 cycle (``benchmarks/bench_evolver.py``) 0.18-0.19 s per step instead of
+0.27 s, 8-10 quasi-Newton steps to the new minimum.
+
 Convergence
 -----------
 Stop when ``|r| <= tol_grad |grad E| + atol_grad`` (``|grad E|`` is the size of the forces
@@ -285,12 +304,10 @@ RELAX_ROUGH_MAX_MOVE = 1.5
 many mean edge lengths (root mean square over the vertices): a perturbation larger than the
 edges tangles the mesh, and the rough stage's local steps lock the tangles in."""
 RELAX_ROUGH_MIN_MOVE = 0.3
-"""The rough stage is also skipped when the start lies closer to the relaxed state than this
-many mean edge lengths (rms): a start without a jiggle, or with a small one, has no
-roughness to remove (the protocol without a jiggle, as in the comparison with Surface Evolver:
-one factorization fewer per step, 0.52 -> 0.46 s per step at gamma = 271 before buckling;
-the protocol's jiggle moves the vertices by 0.76 edge lengths rms, a volume step of 0.019 V0
-by 0.1)."""
+"""A start closer to the relaxed state than this many mean edge lengths (rms) has no roughness
+to remove (no jiggle, or a small one; the protocol's jiggle moves the vertices by 0.76 edge
+lengths rms, a volume step of 0.019 V0 by 0.1): no relaxation at all, quasi-Newton steps on
+the exact Hessian at the relaxed state (module docstring, "Smooth starts")."""
 RELAX_TOL = 1e-5
 """The relaxation hands over to Newton's method when the energy falls by less than this,
 relative, over ``RELAX_WINDOW`` steps."""
