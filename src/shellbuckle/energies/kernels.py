@@ -1,16 +1,19 @@
-"""Compiled per-element kernels of the energies' values, gradients and the bending Hessian (Numba).
+"""Compiled per-element kernels of the energies' values and gradients and of the bending Hessians (Numba).
 
 A minimization evaluates the energy and its gradient, and the enclosed volume, a few hundred
 times per volume step (every line-search trial and every volume restoration), against about a
 dozen Hessians. The NumPy kernels of :mod:`.hinge`, :mod:`.bending`, :mod:`.stretching` and
 :mod:`.volume` do that in a dozen passes over ``(3, n)`` temporaries; the same formulas in
 one compiled loop over the elements are 4-6 times faster (``benchmarks/bench_energies.py``).
-The Jülicher bending Hessian, which couples vertices two rings apart and was the costliest
-part of every assembly of the Newton matrix (19 ms on the paper's 3594-vertex mesh with the
-NumPy kernels, against 1.7 ms for the stretching Hessian), is compiled too
-(:func:`juelicher_hessian`, 6 ms); the other Hessians keep the NumPy kernels. The tests compare
-both implementations of every gradient and of the bending Hessian with each other and with
-central differences.
+The bending Hessians (Jülicher's, which couples vertices two rings apart and was the
+costliest part of an assembly of the Newton matrix, and Surface Evolver's
+``star_perp_sq_mean_curvature``) are compiled too (:func:`juelicher_hessian`,
+:func:`star_perp_hessian`: 12.0 -> 4.7 ms and 29.6 -> 10.9 ms at 2562 vertices; inside a run,
+where the caches hold other data, Jülicher's 11.6 -> 10.0 ms on the paper's mesh; the
+benchmarks/README has the measurements); the other Hessians keep the NumPy kernels. The tests
+compare both implementations of every gradient and of the Jülicher Hessian with each other and
+with central differences; Evolver's Hessian with central differences and its energies with
+Surface Evolver's own.
 
 Each kernel serves both the value alone and the value with the gradient (``gradient=False``
 skips the second pass): the value is then the same number, bit for bit, whichever is asked,
