@@ -41,12 +41,11 @@ def positions(X, n_vertices: int) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def juelicher(X, HT, FT, kappa, c0, gradient):
-    """Jülicher bending energy ``sum_i kappa/2 (2 M_i/A_i - c0)^2 A_i`` and its gradient
-    (:mod:`.bending` for the formulas, :func:`.hinge.hinge_kernel` and
-    :func:`.hinge.face_kernel` for the element derivatives). ``HT (4, E)`` hinges
-    ``(i, j, k, l)`` with edge ``i -> j``, ``FT (3, F)`` faces. Returns ``(value, G)``; ``G``
-    is ``(0, 3)`` without ``gradient``."""
+def _juelicher_elements(X, HT, FT, gradient):
+    """The element sums of :func:`juelicher`: ``M`` (``sum l theta`` over the edges at each
+    vertex) and ``A`` (the areas of its faces), and with ``gradient`` the gradients of every
+    hinge's ``phi = l theta`` over its vertices, ``(E, 4, 3)``, and of every face's area,
+    ``(F, 3, 3)``."""
     V, nh, nf = X.shape[0], HT.shape[1], FT.shape[1]
     M = np.zeros(V)
     A = np.zeros(V)
@@ -101,6 +100,18 @@ def juelicher(X, HT, FT, kappa, c0, gradient):
             dA[f, 1, 0], dA[f, 1, 1], dA[f, 1, 2] = gu0, gu1, gu2
             dA[f, 2, 0], dA[f, 2, 1], dA[f, 2, 2] = gv0, gv1, gv2
             dA[f, 0, 0], dA[f, 0, 1], dA[f, 0, 2] = -(gu0 + gv0), -(gu1 + gv1), -(gu2 + gv2)
+    return M, A, dphi, dA
+
+
+@njit(cache=True, nogil=True)
+def juelicher(X, HT, FT, kappa, c0, gradient):
+    """Jülicher bending energy ``sum_i kappa/2 (2 M_i/A_i - c0)^2 A_i`` and its gradient
+    (:mod:`.bending` for the formulas, :func:`.hinge.hinge_kernel` and
+    :func:`.hinge.face_kernel` for the element derivatives). ``HT (4, E)`` hinges
+    ``(i, j, k, l)`` with edge ``i -> j``, ``FT (3, F)`` faces. Returns ``(value, G)``; ``G``
+    is ``(0, 3)`` without ``gradient``."""
+    V, nh, nf = X.shape[0], HT.shape[1], FT.shape[1]
+    M, A, dphi, dA = _juelicher_elements(X, HT, FT, gradient)
     f_M = np.empty(V if gradient else 0)
     f_A = np.empty(V if gradient else 0)
     value = 0.0
@@ -246,6 +257,17 @@ def _add_skew(B, s, v):
 
 
 @njit(cache=True, nogil=True)
+def _mirror_mean(data, mirror):
+    """Every entry above the diagonal and its transpose (``mirror (2, m)``) set to their mean:
+    an exactly symmetric matrix (the two are sums of the same terms rounded in another order)."""
+    for t in range(mirror.shape[1]):
+        up, lo = mirror[0, t], mirror[1, t]
+        mean = 0.5 * (data[up] + data[lo])
+        data[up] = mean
+        data[lo] = mean
+
+
+@njit(cache=True, nogil=True)
 def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, face_slot,
                       star_ptr, star_member, star_sq_ptr, star_off, stride, mirror, data):
     """Exact Hessian of :func:`juelicher`, added into the CSR ``data`` of a fixed pattern.
@@ -264,55 +286,7 @@ def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, fac
     sums of the same terms, rounded in another order)."""
     V, nh, nf = X.shape[0], HT.shape[1], FT.shape[1]
     data[:] = 0.0
-    M = np.zeros(V)
-    A = np.zeros(V)
-    dphi = np.empty((nh, 4, 3))
-    dA = np.empty((nf, 3, 3))
-    # pass 1: phi = L theta, areas and their gradients
-    for h in range(nh):
-        i, j, k, l = HT[0, h], HT[1, h], HT[2, h], HT[3, h]
-        e0, e1, e2 = X[j, 0] - X[i, 0], X[j, 1] - X[i, 1], X[j, 2] - X[i, 2]
-        a0, a1, a2 = X[k, 0] - X[i, 0], X[k, 1] - X[i, 1], X[k, 2] - X[i, 2]
-        b0, b1, b2 = X[l, 0] - X[i, 0], X[l, 1] - X[i, 1], X[l, 2] - X[i, 2]
-        n00, n01, n02 = e1 * a2 - e2 * a1, e2 * a0 - e0 * a2, e0 * a1 - e1 * a0
-        n10, n11, n12 = b1 * e2 - b2 * e1, b2 * e0 - b0 * e2, b0 * e1 - b1 * e0
-        LL = e0 * e0 + e1 * e1 + e2 * e2
-        L = np.sqrt(LL)
-        theta = np.arctan2(-L * (n00 * b0 + n01 * b1 + n02 * b2),
-                           n00 * n10 + n01 * n11 + n02 * n12)
-        M[i] += L * theta
-        M[j] += L * theta
-        Ls0 = L / (n00 * n00 + n01 * n01 + n02 * n02)
-        Ls1 = L / (n10 * n10 + n11 * n11 + n12 * n12)
-        t0 = (a0 * e0 + a1 * e1 + a2 * e2) / LL
-        t1 = (b0 * e0 + b1 * e1 + b2 * e2) / LL
-        for c in range(3):
-            nc0 = n00 if c == 0 else (n01 if c == 1 else n02)
-            nc1 = n10 if c == 0 else (n11 if c == 1 else n12)
-            ec = e0 if c == 0 else (e1 if c == 1 else e2)
-            g2 = -Ls0 * nc0
-            g3 = -Ls1 * nc1
-            d1 = L * -(t0 * g2 + t1 * g3) + theta * (ec / L)
-            dphi[h, 1, c] = d1
-            dphi[h, 2, c] = L * g2
-            dphi[h, 3, c] = L * g3
-            dphi[h, 0, c] = -(d1 + L * g2 + L * g3)
-    for f in range(nf):
-        p, q, r = FT[0, f], FT[1, f], FT[2, f]
-        u0, u1, u2 = X[q, 0] - X[p, 0], X[q, 1] - X[p, 1], X[q, 2] - X[p, 2]
-        v0, v1, v2 = X[r, 0] - X[p, 0], X[r, 1] - X[p, 1], X[r, 2] - X[p, 2]
-        m0, m1, m2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        norm = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-        A[p] += 0.5 * norm
-        A[q] += 0.5 * norm
-        A[r] += 0.5 * norm
-        h0, h1, h2 = m0 / norm, m1 / norm, m2 / norm
-        dA[f, 1, 0], dA[f, 1, 1], dA[f, 1, 2] = (0.5 * (v1 * h2 - v2 * h1), 0.5 * (v2 * h0 - v0 * h2),
-                                                 0.5 * (v0 * h1 - v1 * h0))
-        dA[f, 2, 0], dA[f, 2, 1], dA[f, 2, 2] = (0.5 * (h1 * u2 - h2 * u1), 0.5 * (h2 * u0 - h0 * u2),
-                                                 0.5 * (h0 * u1 - h1 * u0))
-        for c in range(3):
-            dA[f, 0, c] = -(dA[f, 1, c] + dA[f, 2, c])
+    M, A, dphi, dA = _juelicher_elements(X, HT, FT, True)  # phi = L theta, areas, gradients
     H = np.empty(V)
     f_M = np.empty(V)
     f_A = np.empty(V)
@@ -453,11 +427,7 @@ def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, fac
                     gPc = wv * G[lo + P, c]
                     for d in range(3):
                         data[off + c * rowstride + d] += gPc * G[lo + Q, d]
-    for t in range(mirror.shape[1]):
-        up, lo = mirror[0, t], mirror[1, t]
-        mean = 0.5 * (data[up] + data[lo])
-        data[up] = mean
-        data[lo] = mean
+    _mirror_mean(data, mirror)
     return data
 
 
@@ -550,6 +520,22 @@ def _star_perp_vertex(Fv, Mv, S, v, modulus, h0, weight, dh, dg, D, hessian):
     return modulus * weight[v] * S[v] * r * r / 3.0
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _face_weights(dgv, FT, f, vF):
+    """What face ``f`` gets of its corners' ``dg/dq``: ``vF[c] = dg/dF`` of corner ``c``
+    (filled), and the sums over the corners of ``dg/dM`` and ``dg/dS``, returned."""
+    gM0 = gM1 = gM2 = gS = 0.0
+    for c in range(3):
+        v = FT[c, f]
+        for k in range(3):
+            vF[c, k] = dgv[v, k]
+        gM0 += dgv[v, 3]
+        gM1 += dgv[v, 4]
+        gM2 += dgv[v, 5]
+        gS += dgv[v, 6]
+    return gM0, gM1, gM2, gS
+
+
 @njit(cache=True, nogil=True)
 def star_perp(X, FT, modulus, h0, weight, gradient):
     """Surface Evolver's ``star_perp_sq_mean_curvature``, ``sum_v modulus weight_v S_v
@@ -572,15 +558,7 @@ def star_perp(X, FT, modulus, h0, weight, gradient):
     for f in range(FT.shape[1]):
         n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
         h = (n0 / rho, n1 / rho, n2 / rho)  # nhat
-        gM0 = gM1 = gM2 = gS = 0.0
-        for c in range(3):
-            v = FT[c, f]
-            for k in range(3):
-                vF[c, k] = dgv[v, k]
-            gM0 += dgv[v, 3]
-            gM1 += dgv[v, 4]
-            gM2 += dgv[v, 5]
-            gS += dgv[v, 6]
+        gM0, gM1, gM2, gS = _face_weights(dgv, FT, f, vF)
         # Hess(a) vF = 1/2 [(N^T N vF - 4 grad_a (grad_a . vF)) / rho + nhat x (vF_{c+2} - vF_{c+1})]
         Nv0 = Nv1 = Nv2 = ga_v = 0.0
         for c in range(3):
@@ -660,16 +638,7 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
                         J[slot, 3 + k, d] += 0.5 * E[a, k, d]
                     J[slot, 6, d] += ga[a, d]
         # sum_k (dg/dq_k) Hess(q_k): Hess(vF . grad a) + Hess(gM . n / 2) + gS Hess(a)
-        gS = 0.0
-        gM0 = gM1 = gM2 = 0.0
-        for c in range(3):
-            v = FT[c, f]
-            for k in range(3):
-                vF[c, k] = dgv[v, k]
-            gM0 += dgv[v, 3]
-            gM1 += dgv[v, 4]
-            gM2 += dgv[v, 5]
-            gS += dgv[v, 6]
+        gM0, gM1, gM2, gS = _face_weights(dgv, FT, f, vF)
         _skew_into(Sg, gM0, gM1, gM2)
         m[:] = 0.0
         for c in range(3):
@@ -731,9 +700,5 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
                         data[off_ab + c * row_a + d] += acc
                         if b != a:
                             data[off_ba + d * row_b + c] += acc
-    for t in range(mirror.shape[1]):
-        up, lo = mirror[0, t], mirror[1, t]
-        mean = 0.5 * (data[up] + data[lo])
-        data[up] = mean
-        data[lo] = mean
+    _mirror_mean(data, mirror)
     return data
