@@ -294,7 +294,6 @@ class _Plan:
         HT = np.ascontiguousarray(HT[:, np.argsort(rank[HT].min(axis=0), kind="stable")])
         FT = np.ascontiguousarray(FT[:, np.argsort(rank[FT].min(axis=0), kind="stable")])
         self.V, self.FT, self.HT = V, FT, HT
-        self._valence = valence
         self._lock = threading.Lock()
         self._hessian_ready = False
 

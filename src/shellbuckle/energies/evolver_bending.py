@@ -48,7 +48,7 @@ Implementation: the value with the gradient and the Hessian are compiled loops o
 and the vertices (:func:`.kernels.star_perp`, :func:`.kernels.star_perp_hessian`, Numba); the
 Hessian is added straight into the data of a CSR matrix whose pattern couples the vertices of
 every star (:class:`.bending.StarPattern`, built on the first call and shared by the copies
-that :meth:`StarPerpBending.with_c0` makes).
+that ``dataclasses.replace`` makes, :func:`.total.with_c0` in the c0 cycle).
 
 Reference: K. A. Brakke, "The Surface Evolver", Experimental Mathematics 1 (1992) 141-165;
 Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvature``.
@@ -56,7 +56,6 @@ Surface Evolver 2.70 manual, section "Named methods", ``star_perp_sq_mean_curvat
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,10 +149,6 @@ class StarPerpBending:
     def h_zero(self) -> np.ndarray:
         """Evolver's ``h_zero`` per vertex, ``c0 / 2``, shape ``(V,)``."""
         return self._h0.copy()
-
-    def with_c0(self, c0) -> "StarPerpBending":
-        """The same term with spontaneous curvature ``c0`` (sharing the Hessian's pattern)."""
-        return dataclasses.replace(self, c0=c0)
 
     # -- energy interface --------------------------------------------------------------------
     def _positions(self, X):
