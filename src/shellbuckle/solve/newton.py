@@ -365,12 +365,17 @@ class _Factorization:
         self.pinned = pinned
         self.handle = self.X = self.energy = self.V_target = self.mu = self.inertia = None
 
-    def certifies(self, energy, V_target) -> bool:
+    def exact(self, energy) -> bool:
         """Whether this is an unshifted double-precision factorization with inertia 0 of the
-        KKT matrix of ``energy`` at ``V_target`` (at the point ``self.X``)."""
+        KKT matrix of ``energy`` (at the point ``self.X``; the matrix does not depend on the
+        volume target)."""
         return (not self.approximate and self.mu == 0.0 and self.inertia == 0
-                and self.energy is not None and self.energy() is energy
-                and self.V_target == V_target)
+                and self.energy is not None and self.energy() is energy)
+
+    def certifies(self, energy, V_target) -> bool:
+        """Whether it is :meth:`exact` for ``energy`` at ``V_target``: it certifies a minimum
+        there."""
+        return self.exact(energy) and self.V_target == V_target
 
 
 _HELD: dict = {}
@@ -932,8 +937,7 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     Returns ``(X, E, steps, history records)``."""
     energy, volume, V_target = nt.energy, nt.volume, nt.V_target
     rough, shift = shifts
-    move = float(np.sqrt(np.mean(np.sum((X - X_ref) ** 2, axis=1))))
-    move /= mean_edge_length(np.asarray(volume.faces), X_ref)
+    move = _move(volume, X, X_ref)
     rough = (rough if rough > shift and RELAX_ROUGH_MIN_MOVE <= move <= RELAX_ROUGH_MAX_MOVE
              else None)
     lam, r, gE, gV = nt.gradients(X_ref)
@@ -986,12 +990,17 @@ def _relax(nt, X, E, X_ref, shifts, tol, max_it, max_step, tol_grad, atol_grad, 
     return X, E, n, records
 
 
-def _smooth_start(volume, X: np.ndarray, X_ref: np.ndarray) -> bool:
-    """Whether ``X`` lies closer to ``X_ref`` than ``RELAX_ROUGH_MIN_MOVE`` mean edge lengths of
-    ``X_ref`` (root mean square over the vertices, as :func:`_relax` measures it): no jiggle,
-    or a small one."""
+def _move(volume, X: np.ndarray, X_ref: np.ndarray) -> float:
+    """How far ``X`` lies from ``X_ref``: the root mean square over the vertices of their
+    displacements, in mean edge lengths of ``X_ref``."""
     move = float(np.sqrt(np.mean(np.sum((X - X_ref) ** 2, axis=1))))
-    return move < RELAX_ROUGH_MIN_MOVE * mean_edge_length(np.asarray(volume.faces), X_ref)
+    return move / mean_edge_length(np.asarray(volume.faces), X_ref)
+
+
+def _smooth_start(volume, X: np.ndarray, X_ref: np.ndarray) -> bool:
+    """Whether ``X`` lies closer to ``X_ref`` than ``RELAX_ROUGH_MIN_MOVE`` (:func:`_move`): no
+    jiggle, or a small one; such a start is not relaxed at all."""
+    return _move(volume, X, X_ref) < RELAX_ROUGH_MIN_MOVE
 
 
 def _exact_preconditioner(nt, X_ref: np.ndarray, token):
@@ -1000,10 +1009,8 @@ def _exact_preconditioner(nt, X_ref: np.ndarray, token):
     smooth start (module docstring, "Smooth starts"): ``token`` if the solver still holds it
     and it was made at exactly ``X_ref`` with this energy, else a new factorization (the same
     matrix, so the same bits); ``None`` where that matrix has a negative direction."""
-    if (isinstance(token, _Factorization) and not token.approximate and token.mu == 0.0
-            and token.inertia == 0 and token.energy is not None
-            and token.energy() is nt.raw_energy and token.X is not None
-            and np.array_equal(token.X, X_ref) and _warm_ok(token, nt)):
+    if (isinstance(token, _Factorization) and token.exact(nt.raw_energy)
+            and token.X is not None and np.array_equal(token.X, X_ref) and _warm_ok(token, nt)):
         return token
     lam, _, _, gV = nt.gradients(X_ref)
     nt.assemble(X_ref, lam, gV)
