@@ -29,6 +29,11 @@ before its walls touch) depends on the jiggle, so the time of a whole run is a r
 ``--seeds S ...`` runs every gamma once per jiggle seed on the same mesh
 (``random_sphere(vertices, --seed)``) and ends with one line per gamma: the smallest, median
 and largest total wall time and number of steps, and how many runs took at most 60 s.
+
+The first lines name the machine and time a fixed piece of the deflation's work on it
+(``benchmarks/machine.py``: an energy gradient, a Hessian, PARDISO factorizations and solves);
+the last line times it again. The same run's wall time differs by up to 1.5 times between
+days on machines of one kind; compare runs by those figures as well as by their own.
 """
 
 from __future__ import annotations
@@ -40,18 +45,18 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUME
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
 
 import numpy as np  # noqa: E402
-import scipy  # noqa: E402
 
 from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol  # noqa: E402
 from shellbuckle.solve.linear import CountingSolver  # noqa: E402
+
+from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
 
 PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
 TIMING_KEYS = ("assembly", "factorization", "solve", "line_search")
@@ -190,8 +195,8 @@ def main(argv=None) -> None:
                         help="last target dV/V of the large run (default 0.057: 3 steps)")
     args = parser.parse_args(argv)
 
-    print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-          f"{platform.machine()}, {_threads_text(args.threads)}, load average {os.getloadavg()[0]:.2f}")
+    print(f"{describe()}; {_threads_text(args.threads)}")
+    print(reference_line(reference()), flush=True)
     seeds = args.seeds or [args.seed]
     jobs = [(args.vertices, g, args.until, s) for g in args.gamma for s in seeds]
     if args.large:
@@ -217,7 +222,7 @@ def main(argv=None) -> None:
         print(_row(r))
     for line in seed_summary(rows):
         print(line)
-    print(f"load average at the end {os.getloadavg()[0]:.2f}")
+    print(f"load average at the end {os.getloadavg()[0]:.2f}; again {reference_line(reference())}")
 
 
 if __name__ == "__main__":

@@ -96,6 +96,8 @@ from shellbuckle.run import deflate  # noqa: E402
 from shellbuckle.solve.linesearch import projected_gradient  # noqa: E402
 from shellbuckle.store.run import source_commit  # noqa: E402
 
+from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
+
 EVOLVER_RELAX = r"""
 // relax(etol, confirm, maxit): minimize the energy at the current target volume.
 // One g step (Lagrange multiplier, projection onto the target volume), then Newton steps on
@@ -501,6 +503,8 @@ def main(argv=None) -> int:
               f"c0 = 2/R; {len(schedule)} steps, c0 cycle {'on' if args.c0_cycle else 'off'}, "
               + (f"jiggle at temperature {args.temperature:g} (seed {args.jiggle_seed})"
                  if args.temperature > 0 else "no jiggle"), flush=True)
+        machine, ref = describe(), reference()
+        print(f"# {machine}\n# {reference_line(ref)}", flush=True)
         print("# Evolver rigid-motion gauge: " + ("none (--no-pin)" if pinned is None else
               "vertex {} fixed, {} on a line, {} in a plane (Evolver ids)".format(
                   *(v + 1 for v in pinned))), flush=True)
@@ -601,6 +605,7 @@ def main(argv=None) -> int:
                "evolver": se["version"], "shellbuckle": source_version(),
                "numpy": np.__version__, "python": platform.python_version(),
                "machine": platform.machine(), "load_average": os.getloadavg()[0],
+               "machine_description": machine, "reference_workload_ms": ref,
                "evolver_process_wall_s": se["process_wall_s"],
                "evolver_process_cpu_s": se["process_cpu_s"],
                "ours_total_wall_s": ours["total_wall_s"], "ours_total_cpu_s": ours["total_cpu_s"],
