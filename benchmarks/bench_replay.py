@@ -44,12 +44,10 @@ import ast  # noqa: E402
 import contextlib  # noqa: E402
 import dataclasses  # noqa: E402
 import inspect  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-import scipy  # noqa: E402
 
 from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
@@ -58,6 +56,8 @@ from shellbuckle.protocol.deflate import Protocol, State  # noqa: E402
 from shellbuckle.solve.linear import CountingSolver  # noqa: E402
 from shellbuckle.solve.newton import newton  # noqa: E402
 from shellbuckle.store.run import source_commit  # noqa: E402
+
+from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
 
 PAPER_GAMMAS = (271.0, 2333.0, 20995.0)
 
@@ -180,9 +180,8 @@ def main(argv=None) -> None:
         options = parse_options(args.option)
     except ValueError as exc:
         parser.error(str(exc))
-    print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-          f"{platform.machine()}, one thread, shellbuckle {source_commit() or 'unknown'}, "
-          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{describe()}; one thread, shellbuckle {source_commit() or 'unknown'}")
+    print(reference_line(reference()), flush=True)
     if options:
         print("Newton's options for the replays: "
               + ", ".join(f"{k}={v!r}" for k, v in options.items()))
@@ -198,7 +197,7 @@ def main(argv=None) -> None:
     print(HEADER)
     for r in rows:
         print(_row(r))
-    print(f"load average at the end {os.getloadavg()[0]:.2f}")
+    print(f"load average at the end {os.getloadavg()[0]:.2f}; again {reference_line(reference())}")
 
 
 if __name__ == "__main__":
