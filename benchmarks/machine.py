@@ -39,6 +39,8 @@ import scipy.sparse as sp  # noqa: E402
 REFERENCE_VERTICES = 3594
 REFERENCE_GAMMA = 2333.0
 REFERENCE_SHRINK = 0.95 ** (1.0 / 3.0)
+REFERENCE_KEYS = ("gradient", "hessian", "factor_double", "factor_single", "solve_double",
+                  "solve_single", "step_ms")
 
 
 def _cpu_model() -> str:
@@ -96,8 +98,13 @@ def reference(repeat: int = 7) -> dict:
     Measured in a child process: in the caller's it would load Numba's compiled kernels and
     MKL ahead of the benchmark, whose first run would then not pay for them."""
     done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--json",
-                           str(int(repeat))], capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+                           str(int(repeat))], capture_output=True, text=True)
+    try:
+        return json.loads(done.stdout.strip().splitlines()[-1])
+    except (IndexError, ValueError):  # a failed measurement must not end the benchmark
+        lines = (done.stderr or done.stdout or "no output").strip().splitlines()
+        return {key: float("nan") for key in REFERENCE_KEYS} | {
+            "error": f"exit status {done.returncode}: {lines[-1] if lines else ''}"}
 
 
 def _reference_here(repeat: int) -> dict:
@@ -131,6 +138,8 @@ def _reference_here(repeat: int) -> dict:
 
 def reference_line(ref: dict) -> str:
     """:func:`reference` in one line."""
+    if "error" in ref:
+        return f"reference workload failed ({ref['error']})"
     return (f"reference workload (3594 vertices, ms): gradient {ref['gradient']:.3f}, Hessian "
             f"{ref['hessian']:.1f}, factorization {ref['factor_double']:.1f} double / "
             f"{ref['factor_single']:.1f} single, solve {ref['solve_double']:.2f} / "
