@@ -12,9 +12,9 @@ mesh (``random_sphere(3594, seed=0)`` uniformly shrunk by 5 %, gamma = 2333, Jü
 one value and gradient of the energy; the Hessian assembled and factored (PARDISO's
 symmetric-indefinite factorization of the Hessian shifted by 1e-3 mean|diag| in double and
 in single precision, the pattern analysed beforehand); and one solve with each factor. Each is
-the median of several repeats on one thread. Its sum ``step_ms`` (gradient + single
-factorization + 20 single-precision solves + 20 gradients) weighs them about as a Newton step
-of the protocol followed by its quasi-Newton steps does.
+the median of several repeats on one thread. Their sum ``step_ms`` (a Hessian, a
+single-precision factorization, 20 single-precision solves and 21 gradients) weighs them about
+as a Newton step of the protocol followed by its quasi-Newton steps does.
 
 Run alone (``python benchmarks/machine.py``) it prints both lines.
 """
@@ -140,7 +140,7 @@ def reference_line(ref: dict) -> str:
     """:func:`reference` in one line."""
     if "error" in ref:
         return f"reference workload failed ({ref['error']})"
-    return (f"reference workload (3594 vertices, ms): gradient {ref['gradient']:.3f}, Hessian "
+    return (f"reference workload ({REFERENCE_VERTICES} vertices, ms): gradient {ref['gradient']:.3f}, Hessian "
             f"{ref['hessian']:.1f}, factorization {ref['factor_double']:.1f} double / "
             f"{ref['factor_single']:.1f} single, solve {ref['solve_double']:.2f} / "
             f"{ref['solve_single']:.2f}; step {ref['step_ms']:.0f}")
