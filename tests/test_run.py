@@ -73,6 +73,35 @@ def test_kill_9_then_resume_gives_the_same_table(tmp_path, uninterrupted):
     _compare(done.table, uninterrupted.table)
 
 
+def test_a_run_whose_certificates_turn_to_double_precision_resumes_exactly(tmp_path,
+                                                                           monkeypatch):
+    # Newton's method certifies the minima in single precision while it can; once a step
+    # needs double precision (soft modes after buckling) the run stops trying single, and a
+    # resumed run must make the same choice from the stored record (oracle: the uninterrupted
+    # run, to the last bit). Certificates are refused here at dV/V = 0.12 only, as a shell
+    # whose smallest eigenvalue falls below the certificate's shift would refuse them: a
+    # resumed run that tried again later would certify in single precision, other bits
+    import importlib
+
+    from shellbuckle.energies.volume import Volume
+
+    newton_module = importlib.import_module("shellbuckle.solve.newton")
+    mesh = icosphere(4)
+    V0 = Volume(mesh.faces, mesh.n_vertices).value(mesh.X)
+    tries = []
+    certify = newton_module._Newton.certify_single
+    monkeypatch.setattr(newton_module._Newton, "certify_single", lambda nt: tries.append(
+        nt.V_target) or (not 0.87 * V0 < nt.V_target < 0.89 * V0 and certify(nt)))
+    full = deflate(mesh, PARAMS, out=tmp_path / "full", **OPTIONS)
+    certificates = list(full.table["certificate"].iloc[1:])  # dV/V = 0.03, 0.06, ...
+    assert certificates == ["single"] * 3 + ["double"] * (len(certificates) - 3)
+    # tried in steps 1-4 only: not after the first step that needed double precision
+    assert min(tries) == pytest.approx(0.88 * V0, rel=1e-12) and len(tries) >= 4
+    out = tmp_path / "part"
+    deflate(mesh, PARAMS, out=out, max_steps=5, **OPTIONS)
+    _compare(resume(out).table, full.table)
+
+
 def test_reinflation_branch_keeps_the_reference(tmp_path, uninterrupted):
     k = uninterrupted.steps[-1]
     back = continue_from(uninterrupted, k, tmp_path / "back", dv=-0.06, until=0.05)

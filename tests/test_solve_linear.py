@@ -176,11 +176,12 @@ def test_counting_solver_counts_and_passes_everything_on(backend):
 
 
 @pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
-def test_pardiso_keeps_the_previous_double_factorization():
-    # oracle: dense solutions and inertias of three matrices with one pattern; PARDISO holds
-    # the last two double-precision factorizations, approximate ones go to their own handle
+def test_pardiso_keeps_the_previous_factorizations_of_each_precision():
+    # oracle: dense solutions and inertias of four matrices with one pattern; PARDISO holds
+    # the last two double-precision factorizations, and the approximate (single-precision)
+    # ones in their own handle, so that neither kind overwrites the other
     base = _random_symmetric(50, 1)
-    mats = [base + s * sp.eye(50) for s in (0.0, 4.0, -4.0)]
+    mats = [base + s * sp.eye(50) for s in (0.0, 4.0, -4.0, 2.0)]
     b = np.random.default_rng(1).standard_normal(50)
     solver = PardisoSolver()
     handles = []
@@ -188,13 +189,16 @@ def test_pardiso_keeps_the_previous_double_factorization():
         solver.factor(A)
         handles.append(solver.held())
     solver.factor(mats[2], approximate=True)  # does not touch the double factorizations
-    assert solver.held() is None
-    for A, handle in zip(mats[:2], handles):
+    single = solver.held()
+    assert single is not None and single[0] == "single" and single not in handles
+    for A, handle, tol in zip(mats[:3], handles + [single], (1e-9, 1e-9, 1e-3)):
         eig = np.linalg.eigvalsh(A.toarray())
         assert solver.activate(handle) and solver.held() == handle
         assert solver.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
-        np.testing.assert_allclose(A @ solver.solve(b), b, atol=1e-9 * np.abs(b).max())
-    solver.factor(mats[2])  # overwrites the older of the two
+        np.testing.assert_allclose(A @ solver.solve(b), b, atol=tol * np.abs(b).max())
+    solver.factor(mats[3])  # overwrites the older of the two double ones, not the single one
     assert not solver.activate(handles[0]) and solver.activate(handles[1])
     np.testing.assert_allclose(mats[1] @ solver.solve(b), b, atol=1e-9 * np.abs(b).max())
+    assert solver.activate(single)
+    np.testing.assert_allclose(mats[2] @ solver.solve(b), b, atol=1e-3 * np.abs(b).max())
     assert not solver.activate(None)

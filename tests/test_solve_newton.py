@@ -380,13 +380,14 @@ def test_rough_stage_is_skipped_for_a_start_far_from_or_close_to_the_relaxed_sta
 def test_single_precision_steps_reach_the_double_precision_minimum():
     # oracles: the same minimization with every factorization in double precision, KKT
     # conditions and the dense inertia; the single-precision Newton steps never report an
-    # inertia, and the inertia that certifies the minimum comes from a double factorization
+    # inertia, and (without single-precision certificates) the inertia that certifies the
+    # minimum comes from a double factorization
     mesh, energy, volume, V, shrunk, X0 = _jiggled_shell()
     runs = []
     for single in (False, True):
         solver = CountingSolver(make_solver())
         res = newton(energy, volume, X0, V, history=True, solver=solver, max_iter=300,
-                     single_precision_steps=single)
+                     single_precision_steps=single, certify_single=False)
         runs.append((res, dict(solver.counts)))
     (double, counts_double), (mixed, counts_mixed) = runs
     assert double.success and mixed.success and mixed.inertia == 0
@@ -631,7 +632,7 @@ def test_an_uncertified_minimization_ends_at_the_certified_minimum_with_fewer_fa
     assert tangent_inertia_dense(flat, volume, uncertified.x) == 0
     assert uncertified.fun == pytest.approx(certified.fun, rel=1e-12)
     assert np.abs(uncertified.x - certified.x).max() <= 1e-6
-    assert n_uncertified["double"] < n_certified["double"]
+    assert certified.certificate in ("single", "double") and uncertified.certificate is None
     assert n_uncertified["double"] + n_uncertified["single"] < \
         n_certified["double"] + n_certified["single"]
 
@@ -698,7 +699,8 @@ def test_a_smooth_start_steps_on_the_hessian_at_the_relaxed_state(monkeypatch):
     assert_kkt(energy, volume, held, 0.94 * V0)
     assert tangent_inertia_dense(energy, volume, held.x) == 0
     assert np.array_equal(held.x, fresh.x) and held.nit == fresh.nit
-    assert counts["fresh"]["double"] == counts["held"]["double"] + 1
+    n_fresh, n_held = (counts[k]["double"] + counts[k]["single"] for k in ("fresh", "held"))
+    assert n_fresh == n_held + 1
     assert counts["held"]["double"] + counts["held"]["single"] < n_relaxed
     assert held.history[0]["step"] == "quasi-newton" and relaxed.history[0]["step"] == "relax"
     assert held.fun == pytest.approx(relaxed.fun, rel=1e-12)
@@ -706,15 +708,15 @@ def test_a_smooth_start_steps_on_the_hessian_at_the_relaxed_state(monkeypatch):
 
 
 def test_a_stale_warm_start_is_ignored():
-    # once the solver no longer holds the factorization (PARDISO keeps the last two in
-    # double precision; each minimization below factors at least once in double) the token
+    # once the solver no longer holds the factorization (PARDISO keeps the last two of each
+    # precision; each minimization below factors at least once, its certificate) the token
     # no longer describes it: the minimization must then be exactly the cold one
     mesh, flat, volume, V, solver, first = _c0_cycle_problem()
     options = dict(solver=solver, pinned=pinned_dofs(mesh.X), precondition_at=first.x)
     newton(flat, volume, first.x, V, **options)
-    n_double = solver.counts["double"]
+    n_factor = solver.n_factor
     cold = newton(flat, volume, first.x, V, **options)  # first's token is stale now
-    assert solver.counts["double"] > n_double
+    assert solver.n_factor > n_factor
     again = newton(flat, volume, first.x, V, warm_start=first.factorization, **options)
     assert np.array_equal(again.x, cold.x) and again.nit == cold.nit
     # a valid token brings its gauge: asked for another one, the minimization keeps the held
@@ -731,10 +733,10 @@ def test_a_stale_warm_start_is_ignored():
     token = kept.factorization
     token.pinned = np.arange(6)
     assert not _fixes_gauge(first.x, token.pinned)
-    n_double = solver.counts["double"]
+    n_factor = solver.n_factor
     res = newton(flat, volume, first.x, V, warm_start=token, solver=solver, pinned=other,
                  precondition_at=first.x, history=True)
-    assert solver.counts["double"] > n_double  # the smooth start's own factorization
+    assert solver.n_factor > n_factor  # the smooth start's own factorization
     assert res.fun == pytest.approx(cold.fun, rel=1e-12)
 
 
@@ -819,3 +821,87 @@ def test_the_thorough_abandon_test_is_asked_after_the_relaxation_and_where_steps
     assert not stop.success and stop.message == f"{ABANDONED}: stuck"
     assert len(asked) == 1 and np.array_equal(asked[0], stop.x)
     assert stop.fun == energy.value(stop.x) < energy.value(X0)
+
+
+def _dense_tangent_hessian_min(energy, volume, X, pinned):
+    """What the KKT matrix of Newton's method with the dofs ``pinned`` factors, densely: the
+    smallest eigenvalue of ``K = Hess E - lam Hess V`` on the free dofs orthogonal to
+    ``grad V``, and the mean absolute diagonal of that KKT matrix (``K`` on the free dofs and
+    the constraint's zero)."""
+    gE, gV = energy.gradient(X), volume.gradient(X)
+    lam, _ = projected_gradient(gE, gV)
+    free = np.setdiff1d(np.arange(X.size), pinned)
+    K = (energy.hessian(X) - lam * volume.hessian(X)).toarray()[np.ix_(free, free)]
+    Z = scipy.linalg.null_space(gV.ravel()[free][None, :])
+    return (float(np.linalg.eigvalsh(Z.T @ K @ Z)[0]),
+            float(np.abs(np.diag(K)).sum() / (free.size + 1)))
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="single precision needs PARDISO (Intel MKL)")
+def test_a_single_precision_certificate_reaches_the_double_precision_minimum():
+    # oracles: the same minimization certified in double precision (energy, pressure,
+    # point), KKT conditions, and the dense tangent Hessian, whose smallest eigenvalue lies
+    # above the certificate's shift (what inertia 0 of the shifted factorization claims)
+    from shellbuckle.solve.newton import CERTIFY_SHIFT
+
+    mesh, energy, volume, V0 = shell(4, 1000)
+    pinned = pinned_dofs(mesh.X)
+    runs = {}
+    for single in (True, False):
+        solver = CountingSolver(make_solver())
+        res = newton(energy, volume, 0.95 ** (1 / 3) * mesh.X, 0.95 * V0, solver=solver,
+                     pinned=pinned, certify_single=single)
+        runs[single] = (res, dict(solver.counts))
+    (one, n_one), (two, n_two) = runs[True], runs[False]
+    assert one.success and two.success and one.inertia == two.inertia == 0
+    assert one.certificate == "single" and two.certificate == "double"
+    assert n_one["double"] == 0 and n_two["double"] >= 1
+    assert one.fun == pytest.approx(two.fun, rel=1e-12)
+    assert one.pressure == pytest.approx(two.pressure, rel=1e-8)
+    assert np.abs(one.x - two.x).max() <= 1e-6
+    assert_kkt(energy, volume, one, 0.95 * V0)
+    lam_min, scale = _dense_tangent_hessian_min(energy, volume, one.x, pinned)
+    assert lam_min > CERTIFY_SHIFT * scale
+    # the certificate is the factorization the solver holds, and a later minimization may
+    # start from it (warm start of the protocol's c0 cycle)
+    tok = one.factorization
+    assert tok is not None and tok.approximate and tok.certifies(energy, 0.95 * V0)
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="single precision needs PARDISO (Intel MKL)")
+def test_a_shift_above_the_smallest_eigenvalue_falls_back_to_double_precision(monkeypatch):
+    # oracle: the dense tangent Hessian; where its smallest eigenvalue lies below the shift
+    # the single-precision try shows a negative eigenvalue, and the unshifted double one
+    # certifies the minimum, tried once per minimization
+    import importlib
+
+    newton_module = importlib.import_module("shellbuckle.solve.newton")
+    mesh, energy, volume, V0 = shell(4, 1000)
+    X0, V, pinned = 0.95 ** (1 / 3) * mesh.X, 0.95 * V0, pinned_dofs(mesh.X)
+    reference = newton(energy, volume, X0, V, pinned=pinned, certify_single=False)
+    lam_min, scale = _dense_tangent_hessian_min(energy, volume, reference.x, pinned)
+    monkeypatch.setattr(newton_module, "CERTIFY_SHIFT", 2.0 * lam_min / scale)
+    tries = []
+    certify = newton_module._Newton.certify_single
+    monkeypatch.setattr(newton_module._Newton, "certify_single",
+                        lambda nt: tries.append(certify(nt)) or tries[-1])
+    solver = CountingSolver(make_solver())
+    res = newton(energy, volume, X0, V, solver=solver, pinned=pinned)
+    assert res.success and res.inertia == 0 and res.certificate == "double"
+    assert tries == [False] and solver.counts["double"] >= 1
+    assert res.fun == pytest.approx(reference.fun, rel=1e-12)
+    assert np.abs(res.x - reference.x).max() <= 1e-6
+    monkeypatch.setattr(newton_module, "CERTIFY_SHIFT", 0.5 * lam_min / scale)
+    res = newton(energy, volume, X0, V, pinned=pinned)
+    assert res.success and res.certificate == "single" and tries[-1] is True
+
+
+def test_solvers_without_single_precision_certify_in_double():
+    # QDLDL and SuperLU ignore approximate=True: a shifted "certificate" would save nothing,
+    # so the minimum is certified as before. Oracle: the dense tangent inertia
+    mesh, energy, volume, V0 = shell(3, 1000)
+    for name in ("qdldl", "superlu"):
+        solver = CountingSolver(name)
+        res = newton(energy, volume, 0.95 ** (1 / 3) * mesh.X, 0.95 * V0, solver=solver)
+        assert res.success and res.certificate == "double"
+        assert tangent_inertia_dense(energy, volume, res.x) == 0

@@ -260,7 +260,27 @@ class Context:
     """The factorization that the last step's final minimization ended with
     (``held["token"]``), which the linear solver may still hold: a smooth start of the next
     step uses it if it was made at exactly that step's start (:func:`step`). A cache, never
-    stored: without it Newton's method factors the same matrix."""
+    stored: without it Newton's method factors the same matrix. And whether the next step's
+    minimizations try a single-precision certificate (``held[SINGLE_CERTIFICATE]``, see
+    :func:`continue_from`)."""
+
+
+SINGLE_CERTIFICATE = "certify_single"
+"""Key of :attr:`Context.held`: whether the minimizations of the next step try to show their
+minimum positive definite with a single-precision factorization first (Newton's
+``certify_single``; :mod:`shellbuckle.solve.newton`, "Single-precision certificates"). True
+at the start of a run, then whether the last step's minimum was certified so (its record's
+``certificate``): where a certificate needed double precision (soft modes after buckling,
+or a stiff shell on a fine mesh), the next one will too, and a single-precision try would
+only cost a factorization more."""
+
+
+def continue_from(ctx: Context, record: dict) -> None:
+    """Set up ``ctx`` to go on after a stored step whose record is ``record`` (a resumed run):
+    the same choice of certificate as the uninterrupted run made after it
+    (:data:`SINGLE_CERTIFICATE`), so that the next step factors the same matrices in the same
+    precision and the resumed run repeats it exactly."""
+    ctx.held[SINGLE_CERTIFICATE] = record.get("certificate", "single") == "single"
 
 
 @one_blas_thread
@@ -371,6 +391,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
         hinges = ctx.mesh.topology.hinges
         options = {"solver": ctx.solver, "pinned": ctx.pinned, "certify": certify,
+                   "certify_single": ctx.held.get(SINGLE_CERTIFICATE, True),
                    "abandon": lambda X: folded_flat(X, hinges),
                    "abandon_thorough": lambda X: (folded_flat(X, hinges)
                                                or folded_locally(ctx.contact, X))}
@@ -550,6 +571,8 @@ def step(ctx: Context, state: State):
                     k, why, sigma)
         sigma *= 0.5
     ctx.held["token"] = result.factorization
+    certificate = getattr(result, "certificate", None) or "none"  # (other methods: none)
+    ctx.held[SINGLE_CERTIFICATE] = certificate == "single"
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
@@ -557,6 +580,7 @@ def step(ctx: Context, state: State):
     record["step"] = k
     record["jiggle_sigma"] = float(sigma)
     record["jiggle_attempts"] = attempt + 1
+    record["certificate"] = certificate
     if p.control in PARAMETER_CONTROLS:
         record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:

@@ -43,8 +43,8 @@ certain. A double-precision solver factors a matrix in single precision when ask
 ``refinement = 0``): the Newton method does so for the shifted, positive definite
 preconditioner of its relaxation (:mod:`.newton`), whose solves are corrected by L-BFGS and
 never give a reported inertia; QDLDL and SuperLU ignore the flag. PARDISO keeps the last two
-double-precision numeric factorizations of a pattern (``maxfct = 2``): ``held()`` names the
-one in use and ``activate(handle)`` solves with the previous one again while it is held, so
+numeric factorizations of a pattern in each precision (``maxfct = 2``): ``held()`` names the
+one in use and ``activate(handle)`` solves with an earlier one again while it is held, so
 that a minimization can start from a factorization made two minimizations earlier (the
 protocol's zero-spontaneous-curvature cycle, :mod:`.newton`, "Warm start"); the other
 backends have neither method. PARDISO is one to two orders of magnitude faster than QDLDL on
@@ -228,6 +228,7 @@ class PardisoSolver:
     """MKL PARDISO symmetric-indefinite ``L D L^T`` (``mtype = -2``) through ctypes."""
 
     name = "pardiso"
+    single_precision = True  # factor(..., approximate=True) is in single precision
     _MTYPE = -2
     _SLOTS = 2
 
@@ -266,6 +267,7 @@ class PardisoSolver:
         self._serial = [0] * self._SLOTS  # number of the factorization held in each slot (0: none)
         self._slot_data = [None] * self._SLOTS  # its values (read again by refinement)
         self._slot_signs = [None] * self._SLOTS  # its inertia
+        self._slot_matrix = [None] * self._SLOTS  # single precision: (upper, diagonal), refined
 
     def _call(self, phase: int, data, b=None, x=None, slot: int = 0) -> int:
         ct = self._ct
@@ -323,8 +325,9 @@ class PardisoSolver:
             upper = sp.csr_matrix((upper.data, upper.indices.astype(np.int32),
                                    upper.indptr.astype(np.int32)), shape=upper.shape)
         data = np.ascontiguousarray(upper.data, dtype=np.float64)
+        refine = None
         if self.precision == "single":
-            self._upper, self._diagonal = upper, upper.diagonal()  # for the refinement
+            refine = (upper, upper.diagonal())  # the matrix, for the refinement
             data = data.astype(np.float32)
         if not _same_pattern(upper, self._pattern):
             self._release()
@@ -336,6 +339,7 @@ class PardisoSolver:
             self.n_symbolic += 1
         slot = (self._slot + 1) % self._SLOTS  # overwrite the older factorization
         self._slot, self._serial[slot], self._slot_data[slot] = slot, 0, data
+        self._slot_matrix[slot] = refine
         err = self._call(22, data, slot=slot)
         self.n_numeric += 1
         if err:
@@ -347,19 +351,25 @@ class PardisoSolver:
         self._serial[slot] = self.n_numeric  # held only once it succeeded
 
     def held(self):
-        """A handle of the factorization that :meth:`solve` uses now (``None`` after an
-        ``approximate`` one), for :meth:`activate`."""
-        if self._active is not self or self.precision != "double" or not self._serial[self._slot]:
+        """A handle of the factorization that :meth:`solve` uses now, for :meth:`activate`:
+        ``(precision, slot, serial)``, the precision being that of the factorization
+        (``"single"`` for an ``approximate`` one); ``None`` if none is held."""
+        active = self._active
+        if not active._serial[active._slot]:
             return None
-        return (self._slot, self._serial[self._slot])
+        return (active.precision, active._slot, active._serial[active._slot])
 
     def activate(self, handle) -> bool:
         """Solve with the factorization of ``handle`` (from :meth:`held`) again, if it is
-        still held: PARDISO keeps the last two double-precision factorizations of a pattern
-        (approximate ones do not count). Whether it was."""
-        if handle is None or self._serial[handle[0]] != handle[1] or not handle[1]:
+        still held: PARDISO keeps the last two factorizations of a pattern in each precision
+        (the ``approximate`` ones in their own handle). Whether it was."""
+        if handle is None:
             return False
-        self._active, self._slot = self, handle[0]
+        precision, slot, serial = handle
+        solver = self if precision == self.precision else self._approximate
+        if solver is None or not serial or solver._serial[slot] != serial:
+            return False
+        self._active, solver._slot = solver, slot
         return True
 
     @property
@@ -382,9 +392,9 @@ class PardisoSolver:
         b = np.asarray(b, dtype=np.float64)
         x = self._solve_factor(b)
         if self.precision == "single":  # iterative refinement with double residuals
-            U = self._upper
+            U, diagonal = self._slot_matrix[self._slot]
             for _ in range(self.refinement):
-                x += self._solve_factor(b - (U @ x + U.T @ x - self._diagonal * x))
+                x += self._solve_factor(b - (U @ x + U.T @ x - diagonal * x))
         return x
 
     def inertia(self) -> tuple[int, int, int]:
@@ -405,6 +415,11 @@ class CountingSolver:
     def n_factor(self) -> int:
         """Factorizations of either kind so far."""
         return self.counts["double"] + self.counts["single"]
+
+    @property
+    def single_precision(self) -> bool:
+        """Whether ``inner`` factors the approximate matrices in single precision."""
+        return bool(getattr(self.inner, "single_precision", False))
 
     def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
         self.counts["single" if approximate else "double"] += 1

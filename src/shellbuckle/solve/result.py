@@ -55,6 +55,11 @@ class MinimizeResult:
         end (of the tangent KKT matrix at a point of the last iterations), which the next
         minimization on the same mesh and gauge may use to start (``newton(...,
         warm_start=result.factorization)``); ``None`` if there is none.
+    certificate : str or None
+        Newton's method only: the factorization that showed the reported inertia 0,
+        ``"double"`` (unshifted, double precision) or ``"single"`` (single precision with the
+        tangent Hessian shifted down, :mod:`.newton`, "Single-precision certificates");
+        ``None`` where no inertia 0 was shown.
     """
 
     x: np.ndarray
@@ -70,6 +75,7 @@ class MinimizeResult:
     history: list | None = None
     timings: dict = field(default_factory=dict)
     factorization: object | None = field(default=None, repr=False)
+    certificate: str | None = None
 
     @property
     def lam(self) -> float:
