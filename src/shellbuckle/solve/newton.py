@@ -206,11 +206,12 @@ bending energy of Surface Evolver, the 13 minima of the protocol to dV/V = 0.247
 on the shift to 24 bits): the smallest tangent eigenvalue seen by the single-precision
 factorizations lies 1.4e-8 to 2.3e-8 ``mean|diag K|`` above the one seen in double precision,
 40 to 70 times below ``sigma``; before buckling that eigenvalue is ``4e-6`` to
-``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. Where the single-precision factorization shows a negative
-eigenvalue (a saddle, a soft post-buckling valley, or a stiff shell on a fine mesh, whose
-smallest eigenvalue scales as ``1 / (gamma N)``), the unshifted double-precision
-factorization decides, as without this option, and the minimization does not try again. A
-reported inertia other than 0 therefore always comes from a double-precision factorization.
+``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. Where the single-precision
+factorization shows a negative eigenvalue (a saddle, a soft post-buckling valley, or a stiff
+shell on a fine mesh, whose smallest eigenvalue scales as ``1 / (gamma N)``), the unshifted
+double-precision factorization decides, as without this option, and the minimization does
+not try again. A reported inertia other than 0 therefore always comes from a
+double-precision factorization.
 
 The certificate's factorization is then the one the solver holds: the next minimizations
 start from it (warm starts, smooth starts), and its solves cost half as much (1.2 against
@@ -1056,11 +1057,13 @@ def _smooth_start(volume, X: np.ndarray, X_ref: np.ndarray) -> bool:
 
 
 def _exact_preconditioner(nt, X_ref: np.ndarray, token, single: bool = False):
-    """The factorization of the unshifted Hessian of the Lagrangian at ``X_ref`` (double
-    precision, positive definite on the tangent space), for the first quasi-Newton steps of a
-    smooth start (module docstring, "Smooth starts"): ``token`` if the solver still holds it
-    and it was made at exactly ``X_ref`` with this energy, else a new factorization (the same
-    matrix, so the same bits); ``None`` where that matrix has a negative direction."""
+    """The factorization that certifies the Hessian of the Lagrangian at ``X_ref`` positive
+    definite on the tangent space, for the first quasi-Newton steps of a smooth start (module
+    docstring, "Smooth starts"): ``token`` if the solver still holds it and it was made at
+    exactly ``X_ref`` with this energy, else a new one (``single``: a single-precision
+    certificate where it holds, else unshifted in double precision; the same matrix as the
+    minimization that ended at ``X_ref`` factored with the same choice gives the same bits);
+    ``None`` where that matrix has a negative direction."""
     if (isinstance(token, _Factorization) and token.exact(nt.raw_energy)
             and token.X is not None and np.array_equal(token.X, X_ref) and _warm_ok(token, nt)):
         return token
@@ -1073,8 +1076,9 @@ def _exact_preconditioner(nt, X_ref: np.ndarray, token, single: bool = False):
 
 
 def _certified(fact, X: np.ndarray, max_displacement: float) -> bool:
-    """Whether the inertia 0 of the last factorization (unshifted, at ``fact[0]``) holds at
-    ``X``: the points differ by at most ``max_displacement`` per vertex."""
+    """Whether the inertia 0 of the last factorization (unshifted, or a single-precision
+    certificate, at ``fact[0]``) holds at ``X``: the points differ by at most
+    ``max_displacement`` per vertex."""
     return (fact is not None and fact[1] == 0.0 and fact[2] == 0
             and _max_displacement(X - fact[0]) <= max_displacement)
 
