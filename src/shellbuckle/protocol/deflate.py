@@ -262,7 +262,7 @@ class Context:
     step uses it if it was made at exactly that step's start (:func:`step`). A cache, never
     stored: without it Newton's method factors the same matrix. And whether the next step's
     minimizations try a single-precision certificate (``held[SINGLE_CERTIFICATE]``, see
-    :func:`continue_from`)."""
+    :func:`resume_context`)."""
 
 
 SINGLE_CERTIFICATE = "certify_single"
@@ -275,7 +275,7 @@ or a stiff shell on a fine mesh), the next one will too, and a single-precision 
 only cost a factorization more."""
 
 
-def continue_from(ctx: Context, record: dict) -> None:
+def resume_context(ctx: Context, record: dict) -> None:
     """Set up ``ctx`` to go on after a stored step whose record is ``record`` (a resumed run):
     the same choice of certificate as the uninterrupted run made after it
     (:data:`SINGLE_CERTIFICATE`), so that the next step factors the same matrices in the same

@@ -40,9 +40,11 @@ residual steps; it is an option, not the default, because the inertia of a matri
 eigenvalues within ~1e-7 of its scale (the soft post-buckling modes are ~1e-6) is then less
 certain. A double-precision solver factors a matrix in single precision when asked with
 ``factor(A, approximate=True)`` (a second PARDISO handle with its own symbolic analysis,
-``refinement = 0``): the Newton method does so for the shifted, positive definite
-preconditioner of its relaxation (:mod:`.newton`), whose solves are corrected by L-BFGS and
-never give a reported inertia; QDLDL and SuperLU ignore the flag. PARDISO keeps the last two
+``refinement = 0``; ``single_precision`` is then true): the Newton method does so for the
+shifted, positive definite preconditioner of its relaxation and for its Newton steps far from
+a minimum (:mod:`.newton`), whose solves are corrected by L-BFGS, and for a certificate of a
+minimum with a margin (:mod:`.newton`, "Single-precision certificates"); QDLDL and SuperLU
+ignore the flag. PARDISO keeps the last two
 numeric factorizations of a pattern in each precision (``maxfct = 2``): ``held()`` names the
 one in use and ``activate(handle)`` solves with an earlier one again while it is held, so
 that a minimization can start from a factorization made two minimizations earlier (the
