@@ -355,7 +355,7 @@ def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress:
         else:
             state = State(step=last, X=store.positions(last))
             record = store.record(last)
-            protocol_mod.resume_context(ctx, record)
+            protocol_mod.continue_after(ctx, record)
             if record.get("self_intersecting") and protocol.stop_at_contact:
                 state = State(step=last, X=state.X, stopped="self-intersection")
             elif last >= len(protocol.schedule):

@@ -262,7 +262,7 @@ class Context:
     step uses it if it was made at exactly that step's start (:func:`step`). A cache, never
     stored: without it Newton's method factors the same matrix. And whether the next step's
     minimizations try a single-precision certificate (``held[SINGLE_CERTIFICATE]``, see
-    :func:`resume_context`)."""
+    :func:`continue_after`)."""
 
 
 SINGLE_CERTIFICATE = "certify_single"
@@ -275,11 +275,11 @@ or a stiff shell on a fine mesh), the next one will too, and a single-precision 
 only cost a factorization more."""
 
 
-def resume_context(ctx: Context, record: dict) -> None:
-    """Set up ``ctx`` to go on after a stored step whose record is ``record`` (a resumed run):
-    the same choice of certificate as the uninterrupted run made after it
-    (:data:`SINGLE_CERTIFICATE`), so that the next step factors the same matrices in the same
-    precision and the resumed run repeats it exactly."""
+def continue_after(ctx: Context, record: dict) -> None:
+    """Set up ``ctx`` to go on after the step whose record is ``record``: the choice of
+    certificate for the next step (:data:`SINGLE_CERTIFICATE`). :func:`step` calls it on the
+    record it made and a resumed run on the stored one, so that both make the same choice and
+    the resumed run factors the same matrices in the same precision."""
     ctx.held[SINGLE_CERTIFICATE] = record.get("certificate", "single") == "single"
 
 
@@ -571,8 +571,6 @@ def step(ctx: Context, state: State):
                     k, why, sigma)
         sigma *= 0.5
     ctx.held["token"] = result.factorization
-    certificate = getattr(result, "certificate", None) or "none"  # (other methods: none)
-    ctx.held[SINGLE_CERTIFICATE] = certificate == "single"
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
@@ -580,7 +578,8 @@ def step(ctx: Context, state: State):
     record["step"] = k
     record["jiggle_sigma"] = float(sigma)
     record["jiggle_attempts"] = attempt + 1
-    record["certificate"] = certificate
+    record["certificate"] = result.certificate or "none"  # (methods other than Newton: none)
+    continue_after(ctx, record)
     if p.control in PARAMETER_CONTROLS:
         record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:

@@ -809,19 +809,19 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     E = nt.value(X)
     dE, mu, nit, records = None, 0.0, 0, []
     thorough = abandon_thorough or abandon  # the costlier test, asked where it pays
+    single_ok = single_precision_steps and escape_saddles  # (module docstring)
+    certify_single = certify_single and single_ok
     nt.token = next((t for t in tokens if _warm_ok(t, nt)), None)
     warm = nt.token is not None
     if precondition_at is not None and not warm and _smooth_start(volume, X, precondition_at):
-        nt.token = _exact_preconditioner(nt, precondition_at, precondition_token,
-                                         single_precision_steps and escape_saddles
-                                         and certify_single)
+        nt.token = _exact_preconditioner(nt, precondition_at, precondition_token, certify_single)
         warm = nt.token is not None
     if precondition_at is not None and not warm:
         X, E, nit, records = _relax(nt, X, E, precondition_at, (relax_rough_shift, relax_shift),
                                     relax_tol, max_iter // 2, max_step, tol_grad, atol_grad,
                                     history, abandon, relax_scaling)
     success, message, inertia, retries, certificate = False, "", None, 0, None
-    fact = None  # (X, mu, inertia at mu = 0 or None) of the current factorization
+    fact = None  # (X, mu, inertia at mu = 0 or None, precision) of the current factorization
     if warm and nt.token.certifies(nt.raw_energy, V_target):
         # a minimum of this energy, certified by the held factorization
         fact = (nt.token.X, 0.0, 0, "single" if nt.token.approximate else "double")
@@ -830,7 +830,6 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
     need_gradient, hessian_fresh = True, False
     k = 0  # Newton steps (factorizations of K) so far; the quasi-Newton steps are not counted
     newton_trail = []  # (E, |r|) after each Newton step
-    single_ok = single_precision_steps and escape_saddles  # (module docstring)
     # the test to ask at the next point that has not converged: the thorough one after the
     # relaxation, the cheap one after every Newton step
     ask = thorough if precondition_at is not None and not warm else None
@@ -1195,8 +1194,8 @@ class _Newton:
             self._approximate_ok = False
         # a certificate needs the margin of a shift only where the approximate factorization
         # is in single precision; elsewhere it would save nothing
-        self._single_ok = self._approximate_ok and bool(getattr(linsolver, "single_precision",
-                                                                False))
+        self._factors_single = self._approximate_ok and bool(
+            getattr(linsolver, "single_precision", False))
         self.clock = _Clock()
         self.diag_scale = 1.0
         self._terms = self._data = self._X_assembled = None
@@ -1278,7 +1277,7 @@ class _Newton:
         Hessian shifted down by ``CERTIFY_SHIFT mean|diag K|`` has inertia 0, which shows the
         tangent Hessian positive definite (module docstring, "Single-precision
         certificates"); the solver then holds that factorization."""
-        if not self._single_ok:
+        if not self._factors_single:
             return False
         ok, inertia = self.factor(-CERTIFY_SHIFT * self.diag_scale, approximate=True)
         self.token.certificate = bool(ok and inertia == 0)
