@@ -202,3 +202,38 @@ def test_pardiso_keeps_the_previous_factorizations_of_each_precision():
     assert solver.activate(single)
     np.testing.assert_allclose(mats[2] @ solver.solve(b), b, atol=1e-3 * np.abs(b).max())
     assert not solver.activate(None)
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch):
+    from shellbuckle.solve import linear
+
+    A = _shell_like_matrix(30)
+    B = A.copy()
+    B.data = B.data * (1.0 + 0.1 * np.cos(np.arange(B.nnz)))  # same pattern, other values
+    B = (B + B.T) / 2.0
+    b = np.random.default_rng(5).standard_normal(A.shape[0])
+    analyses = []
+    real_call = PardisoSolver._call
+
+    def call(self, phase, *args, **kwargs):
+        if phase == 11:
+            analyses.append(int(self._iparm[4]))  # 2: METIS's ordering; 1: a given one
+        return real_call(self, phase, *args, **kwargs)
+
+    monkeypatch.setattr(PardisoSolver, "_call", call)
+    monkeypatch.setattr(linear, "_ORDERINGS", {})
+    fresh = PardisoSolver(n_threads=1)
+    fresh.factor(B)
+    monkeypatch.setattr(linear, "_ORDERINGS", {})
+    first, second = PardisoSolver(n_threads=1), PardisoSolver(n_threads=1)
+    first.factor(A)
+    second.factor(B)
+    second.factor(B, approximate=True)  # the single-precision twin: the same ordering
+    assert analyses == [2, 2, 1, 1]
+    assert second.n_symbolic == 1 and len(linear._ORDERINGS) == 1
+    second.activate(("double", second._slot, second._serial[second._slot]))
+    x = second.solve(b)
+    assert np.array_equal(x, fresh.solve(b))  # bitwise: the ordering is METIS's, reused
+    assert second.inertia() == fresh.inertia()
+    np.testing.assert_allclose(B @ x, b, atol=1e-9 * np.abs(b).max())
