@@ -157,3 +157,19 @@ def test_value_only_and_value_with_gradient_are_one_computation():
     v0, G0 = kernels.juelicher(X, p.HT, p.FT, 1.0, 2.0, False)
     v1, G1 = kernels.juelicher(X, p.HT, p.FT, 1.0, 2.0, True)
     assert v0 == v1 and G0.shape == (0, 3) and G1.shape == X.shape
+
+
+def test_face_side_lengths_round_as_numpy_and_give_the_icosahedron_edge(shell):
+    from shellbuckle.solve.linesearch import mean_edge_length
+
+    mesh, X = shell
+    faces = np.asarray(mesh.faces)
+    sides = X[np.roll(faces, -1, axis=1)] - X[faces]
+    expected = np.linalg.norm(sides, axis=-1).ravel()
+    assert np.array_equal(kernels.face_side_lengths(X, faces), expected)  # the same rounding
+    assert mean_edge_length(faces, X) == float(expected.mean())
+    # a regular icosahedron of circumradius 1 has edge 4 / sqrt(10 + 2 sqrt 5)
+    ico = icosphere(1)  # the icosahedron itself
+    scale = 2.5
+    edge = scale * 4.0 / np.sqrt(10.0 + 2.0 * np.sqrt(5.0))
+    assert mean_edge_length(np.asarray(ico.faces), scale * ico.X) == pytest.approx(edge, rel=1e-14)

@@ -702,3 +702,20 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
                             data[off_ba + d * row_b + c] += acc
     _mirror_mean(data, mirror)
     return data
+
+
+# ------------------------------------------------------------------ mesh measures
+
+
+@njit(cache=True, nogil=True)
+def face_side_lengths(X, faces):
+    """Lengths of the sides of every face, ``(3 F,)``: side ``c`` of face ``f`` (from corner
+    ``c`` to corner ``c + 1``) at ``3 f + c``, each ``sqrt((dx dx + dy dy) + dz dz)`` as NumPy's
+    ``norm`` over the last axis rounds it."""
+    out = np.empty(faces.shape[0] * 3)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            p, q = faces[f, c], faces[f, (c + 1) % 3]
+            dx, dy, dz = X[q, 0] - X[p, 0], X[q, 1] - X[p, 1], X[q, 2] - X[p, 2]
+            out[3 * f + c] = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return out

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..energies.kernels import face_side_lengths
+
 log = logging.getLogger(__name__)
 
 #: relative round-off allowance of one energy evaluation in the acceptance tests
@@ -247,8 +249,8 @@ def projected_gradient(gE: np.ndarray, gV: np.ndarray) -> tuple[float, np.ndarra
 
 def mean_edge_length(faces: np.ndarray, X: np.ndarray) -> float:
     """Mean length of the face sides (every interior edge counted twice)."""
-    d = X[np.roll(faces, -1, axis=1)] - X[faces]
-    return float(np.linalg.norm(d, axis=-1).mean())
+    return float(face_side_lengths(np.ascontiguousarray(X, dtype=np.float64),
+                                   np.ascontiguousarray(faces, dtype=np.int64)).mean())
 
 
 def check_problem(X0, V_target) -> tuple[np.ndarray, float]:
