@@ -17,7 +17,9 @@ Run from the repository root, for example:
 For each file: the mesh seed, the step at which each code's pressure first fell (primary
 buckling; ``-`` if it did not), the CPU time of each side over the steps
 before that step and from it on, the whole-process CPU times (Evolver's process includes
-reading the datafile; ours is the ``deflate`` call, set-up included), and their ratio.
+reading the datafile; ours is the ``deflate`` call, set-up included, the mean of the runs of
+``--ours-runs``), their ratio, the machine's reference step, and the CPU time of each run of
+ours (one before and one after Evolver's by default).
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ def summarize(path: Path) -> dict:
         "after_SE": sum(r["cpu_SE"] for r in after), "after_ours": sum(r["cpu_ours"] for r in after),
         "cpu_SE": data["evolver_process_cpu_s"], "cpu_ours": data["ours_total_cpu_s"],
         "step_ms": (data.get("reference_workload_ms") or {}).get("step_ms", math.nan),
+        "runs_ours": data.get("ours_runs_cpu_s") or [data["ours_total_cpu_s"]],
     }
 
 
@@ -66,13 +69,13 @@ def main(argv=None) -> int:
     rows = [summarize(f) for f in args.files]
     print(f"{'file':<34} {'seed':>4} {'buckle SE/us':>12} {'before SE':>9} {'before us':>9} "
           f"{'after SE':>8} {'after us':>8} {'cpu SE':>7} {'cpu us':>6} {'ratio':>6} "
-          f"{'ref step ms':>11}")
+          f"{'ref step ms':>11} {'runs us':>11}")
     for r in rows:
         buckle = f"{r['buckle_SE'] or '-'}/{r['buckle_ours'] or '-'}"
         print(f"{r['file']:<34} {r['seed']!s:>4} {buckle:>12} {r['before_SE']:>9.1f} "
               f"{r['before_ours']:>9.2f} {r['after_SE']:>8.1f} {r['after_ours']:>8.2f} "
               f"{r['cpu_SE']:>7.1f} {r['cpu_ours']:>6.2f} {r['cpu_SE'] / r['cpu_ours']:>6.1f} "
-              f"{r['step_ms']:>11.0f}")
+              f"{r['step_ms']:>11.0f} {'/'.join(f'{t:.2f}' for t in r['runs_ours']):>11}")
     total_se, total_us = sum(r["cpu_SE"] for r in rows), sum(r["cpu_ours"] for r in rows)
     ratios = sorted(r["cpu_SE"] / r["cpu_ours"] for r in rows)
     median = (ratios[len(ratios) // 2] if len(ratios) % 2
