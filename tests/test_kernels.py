@@ -173,3 +173,15 @@ def test_face_side_lengths_round_as_numpy_and_give_the_icosahedron_edge(shell):
     scale = 2.5
     edge = scale * 4.0 / np.sqrt(10.0 + 2.0 * np.sqrt(5.0))
     assert mean_edge_length(np.asarray(ico.faces), scale * ico.X) == pytest.approx(edge, rel=1e-14)
+
+
+def test_add_scaled_at_sums_as_numpy_fancy_indexing():
+    rng = np.random.default_rng(7)
+    values = rng.standard_normal(500)
+    keep = rng.choice(500, size=300, replace=False)
+    slot = rng.choice(1000, size=300, replace=False)  # distinct slots, as in one KKT term
+    data = rng.standard_normal(1000)
+    expected = data.copy()
+    expected[slot] += -2.5 * values[keep]
+    kernels.add_scaled_at(data, slot, values, keep, -2.5)
+    assert np.array_equal(data, expected)

@@ -719,3 +719,15 @@ def face_side_lengths(X, faces):
             dx, dy, dz = X[q, 0] - X[p, 0], X[q, 1] - X[p, 1], X[q, 2] - X[p, 2]
             out[3 * f + c] = np.sqrt(dx * dx + dy * dy + dz * dz)
     return out
+
+
+# ------------------------------------------------------------------ sparse assembly
+
+
+@njit(cache=True, nogil=True)
+def add_scaled_at(data, slot, values, keep, coef):
+    """``data[slot[i]] += coef values[keep[i]]`` for every ``i`` in order (the slots of one
+    call distinct: the same sums as NumPy's ``data[slot] += coef * values[keep]``, in one pass
+    instead of a gather, a product, a gather and a scatter)."""
+    for i in range(len(slot)):
+        data[slot[i]] += coef * values[keep[i]]

@@ -313,6 +313,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from ..energies.kernels import add_scaled_at
 from .lbfgs import SecantPairs
 from .linear import SingularFactorError, make_solver
 from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
@@ -577,7 +578,8 @@ class KKTAssembler:
             self._analyse(mats)
         data = np.zeros(len(self._keys))
         for M, (coef, (_, _, keep, slot)) in zip(mats, zip([c for _, c in terms], self._terms)):
-            data[slot] += coef * M.data[keep]
+            add_scaled_at(data, slot, np.ascontiguousarray(M.data, dtype=np.float64), keep,
+                          float(coef))
         data[self._slot_g] = g.ravel()[self.free]
         return data
 
