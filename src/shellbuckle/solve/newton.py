@@ -494,9 +494,23 @@ def _fixes_gauge(X: np.ndarray, pinned) -> bool:
     if pinned.shape != (6,) or len(np.unique(pinned)) != 6 or pinned.min() < 0 \
             or pinned.max() >= X.size:
         return False
-    modes = rigid_modes(X)
-    cond = np.linalg.cond(modes[pinned])
-    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
+    cond = np.linalg.cond(_rigid_rows(X, pinned))
+    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(_rigid_rows(X, pinned_dofs(X))))
+
+
+def _rigid_rows(X: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+    """The rows ``dofs`` of :func:`rigid_modes` at ``X`` (the same numbers), without the
+    ``(3V, 6)`` array."""
+    dofs = np.asarray(dofs)
+    rows, coordinate = np.arange(len(dofs)), dofs % 3
+    c = X[dofs // 3] - X.mean(axis=0)
+    out = np.zeros((len(dofs), 6))
+    out[rows, coordinate] = 1.0
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1.0
+        out[:, 3 + k] = np.cross(e, c)[rows, coordinate]
+    return out
 
 
 def _sorted_unique(a: np.ndarray) -> np.ndarray:
@@ -1213,7 +1227,9 @@ class _Newton:
         if self.pinned is not None and np.array_equal(pinned, self.pinned):
             return False
         self.pinned = pinned
-        self.free = np.setdiff1d(np.arange(self.n_dofs), pinned)
+        free = np.ones(self.n_dofs, dtype=bool)
+        free[pinned] = False
+        self.free = np.flatnonzero(free)
         self.kkt = kkt_assembler(self.free, self.n_dofs)
         return True
 
