@@ -50,18 +50,12 @@ from shellbuckle.solve.newton import (_fixes_gauge, kkt_assembler, pinned_dofs, 
                                       rigid_modes)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
+from machine import describe, median_ms, reference, reference_line  # noqa: E402  (machine.py)
 
 
-def median_ms(f, repeat: int) -> float:
-    """Median process time of ``f()`` in ms over ``repeat`` calls (after one untimed call)."""
-    f()
-    times = []
-    for _ in range(repeat):
-        t = time.process_time()
-        f()
-        times.append(time.process_time() - t)
-    return 1e3 * float(np.median(times))
+def process_ms(f, repeat: int) -> float:
+    """Median process time of ``f()`` in ms over ``repeat`` calls."""
+    return median_ms(f, repeat, time.process_time)
 
 
 def numpy_kkt_build(kkt, terms, g) -> np.ndarray:
@@ -130,17 +124,19 @@ def main(argv=None) -> int:
     ]
     print(f"{'per call':<34} {'now ms':>9} {'NumPy form ms':>14} {'same bits':>9}")
     for label, now, before, same in rows:
-        t_now = median_ms(now, args.repeat)
+        t_now = process_ms(now, args.repeat)
         if before is None:
             print(f"{label:<34} {t_now:>9.3f} {'':>14} {'':>9}")
             continue
-        t_before = median_ms(before, args.repeat)
-        print(f"{label:<34} {t_now:>9.3f} {t_before:>14.3f} {'yes' if same(now(), before()) else 'NO':>9}")
+        t_before = process_ms(before, args.repeat)
+        equal = "yes" if same(now(), before()) else "NO"
+        print(f"{label:<34} {t_now:>9.3f} {t_before:>14.3f} {equal:>9}")
 
     if linear._load_mkl() is None:
         print("# PARDISO rows skipped: Intel MKL not installed")
         return 0
-    upper = kkt.matrix(kkt.build(terms, g), 1e-3 * float(np.abs(kkt.diagonal(kkt.build(terms, g))).mean()))
+    data = kkt.build(terms, g)
+    upper = kkt.matrix(data, 1e-3 * float(np.abs(kkt.diagonal(data)).mean()))
     b = np.random.default_rng(1).standard_normal(upper.shape[0])
 
     def analyse(known: bool):
@@ -154,8 +150,8 @@ def main(argv=None) -> int:
             raise SystemExit(f"PARDISO analysis failed (error {err})")
 
     repeat = max(3, args.repeat // 5)
-    t_metis = median_ms(lambda: analyse(False), repeat)
-    t_known = median_ms(lambda: analyse(True), repeat)
+    t_metis = process_ms(lambda: analyse(False), repeat)
+    t_known = process_ms(lambda: analyse(True), repeat)
     fresh, reused = linear.PardisoSolver(1), linear.PardisoSolver(1)
     linear._ORDERINGS.clear()
     fresh.factor(upper, upper=True)
@@ -165,8 +161,10 @@ def main(argv=None) -> int:
           f"{'yes' if same else 'NO':>9}   (NumPy form: with METIS)")
     single = linear.PardisoSolver(1, "single", refinement=0)
     single.factor(upper, upper=True)
-    print(f"{'single-precision factorization':<34} {median_ms(lambda: single.factor(upper, upper=True), repeat):>9.3f}")
-    print(f"{'single-precision solve':<34} {median_ms(lambda: single.solve(b), args.repeat):>9.3f}")
+    t_factor = process_ms(lambda: single.factor(upper, upper=True), repeat)
+    print(f"{'single-precision factorization':<34} {t_factor:>9.3f}")
+    t_solve = process_ms(lambda: single.solve(b), args.repeat)
+    print(f"{'single-precision solve':<34} {t_solve:>9.3f}")
     print(f"# {args.vertices} vertices, KKT matrix {upper.shape[0]} rows, {upper.nnz} entries in "
           f"its upper triangle; 'same bits': the two forms' results compared exactly")
     return 0
