@@ -148,6 +148,20 @@ def test_pinned_dofs_fix_the_rigid_gauge():
     assert np.linalg.matrix_rank(rigid_modes(X)[pinned]) == 6
 
 
+def test_the_gauge_test_reads_the_rows_of_the_rigid_modes():
+    # oracle: the rows of the whole (3V, 6) array of rigid modes, exactly; a gauge of three
+    # translations only of one vertex and its neighbour cannot fix the rotations
+    from shellbuckle.solve.newton import _rigid_rows
+
+    rng = np.random.default_rng(8)
+    X = icosphere(2).X * [1.0, 0.7, 0.4] + [0.3, -1.0, 2.0]
+    for _ in range(5):
+        dofs = rng.choice(X.size, 6, replace=False)
+        assert np.array_equal(_rigid_rows(X, dofs), rigid_modes(X)[dofs])
+    assert _fixes_gauge(X, pinned_dofs(X))
+    assert not _fixes_gauge(X, np.array([0, 1, 2, 3, 4, 5]))
+
+
 def test_remove_rigid_is_the_least_squares_projection_off_rigid_motions():
     # oracle: the least-squares solve with the six rigid modes; the result is orthogonal to
     # them, a rigid motion is removed entirely, and a rigid-free field is left unchanged

@@ -55,8 +55,9 @@ shell Hessians of a few thousand vertices (BLAS-3 supernodes): the KKT matrix of
 factorization takes about 1.3 GFlop. METIS's ordering is about two thirds of PARDISO's
 analysis of that matrix (65 of 95 ms): the last few orderings are kept by pattern (a digest of
 the index arrays) and given to any later analysis of the same pattern (``iparm[4] = 1``), so
-the single-precision twin, the solvers of later runs on the same mesh and a resumed run pay it
-once; the factors are bitwise those of METIS's own ordering.
+that a run pays it once for its two precisions, and later runs on the same mesh in the same
+process (a sweep's worker, a notebook) not at all; the factors are bitwise those of METIS's
+own ordering.
 
 PARDISO runs in its conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its
 results are bitwise the same on any number of threads (checked with 1, 2, 3, 4 and 8 threads on

@@ -495,7 +495,8 @@ def _fixes_gauge(X: np.ndarray, pinned) -> bool:
             or pinned.max() >= X.size:
         return False
     cond = np.linalg.cond(_rigid_rows(X, pinned))
-    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(_rigid_rows(X, pinned_dofs(X))))
+    return bool(cond <= GAUGE_MAX_COND
+                or cond <= 2.0 * np.linalg.cond(_rigid_rows(X, pinned_dofs(X))))
 
 
 def _rigid_rows(X: np.ndarray, dofs: np.ndarray) -> np.ndarray:
