@@ -46,8 +46,8 @@ from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.solve import linear  # noqa: E402
 from shellbuckle.solve.linesearch import mean_edge_length  # noqa: E402
-from shellbuckle.solve.newton import (_fixes_gauge, kkt_assembler, pinned_dofs,  # noqa: E402
-                                      rigid_modes)
+from shellbuckle.solve.newton import (GAUGE_MAX_COND, _fixes_gauge, kkt_assembler,  # noqa: E402
+                                      pinned_dofs, rigid_modes)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import describe, median_ms, reference, reference_line  # noqa: E402  (machine.py)
@@ -71,7 +71,7 @@ def numpy_fixes_gauge(X, pinned) -> bool:
     """The gauge test with the whole ``(3V, 6)`` array of rigid modes."""
     modes = rigid_modes(X)
     cond = np.linalg.cond(modes[pinned])
-    return bool(cond <= 10.0 or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
+    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
 
 
 def numpy_mean_edge_length(faces, X) -> float:

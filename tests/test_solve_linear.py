@@ -222,10 +222,10 @@ def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch
         return real_call(self, phase, *args, **kwargs)
 
     monkeypatch.setattr(PardisoSolver, "_call", call)
-    monkeypatch.setattr(linear, "_ORDERINGS", {})
+    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
     fresh = PardisoSolver(n_threads=1)
     fresh.factor(B)
-    monkeypatch.setattr(linear, "_ORDERINGS", {})
+    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
     first, second = PardisoSolver(n_threads=1), PardisoSolver(n_threads=1)
     first.factor(A)
     second.factor(B)
@@ -237,3 +237,17 @@ def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch
     assert np.array_equal(x, fresh.solve(b))  # bitwise: the ordering is METIS's, reused
     assert second.inertia() == fresh.inertia()
     np.testing.assert_allclose(B @ x, b, atol=1e-9 * np.abs(b).max())
+
+
+def test_recent_keeps_the_last_used_entries():
+    from shellbuckle.solve.recent import Recent
+
+    cache = Recent(2)
+    cache.put("a", 1)
+    cache.put("b", 2)
+    assert cache.get("a") == 1  # now the most recent
+    cache.put("c", 3)  # drops "b", the least recently used
+    assert (cache.get("b"), cache.peek("a"), cache.peek("c"), len(cache)) == (None, 1, 3, 2)
+    cache.peek("a")  # no change of order: "a" is still older than "c"
+    cache.put("d", 4)
+    assert (cache.get("a"), cache.get("c"), cache.get("d")) == (None, 3, 4)

@@ -78,11 +78,12 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import threading
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+from .recent import Recent
 
 
 class SingularFactorError(ArithmeticError):
@@ -233,9 +234,8 @@ def _load_mkl():
     return None
 
 
-_ORDERINGS: dict = {}
-_ORDERINGS_SIZE = 8
-_ORDERINGS_LOCK = threading.Lock()
+_ORDERINGS = Recent(8)
+"""Pattern key (:func:`_pattern_key`) -> PARDISO's ``perm`` of METIS's ordering of it."""
 
 
 def _pattern_key(upper) -> tuple:
@@ -378,10 +378,7 @@ class PardisoSolver:
         of an earlier analysis of the same pattern if :data:`_ORDERINGS` holds one (METIS is
         then skipped), else METIS's, which is kept there."""
         key = _pattern_key(self._pattern)
-        with _ORDERINGS_LOCK:
-            perm = _ORDERINGS.pop(key, None)
-            if perm is not None:
-                _ORDERINGS[key] = perm  # most recently used last
+        perm = _ORDERINGS.get(key)
         given = perm is not None
         perm = perm.copy() if given else np.zeros(self._n, dtype=np.int32)
         self._iparm[4] = 1 if given else 2  # use perm / return METIS's ordering in perm
@@ -390,10 +387,7 @@ class PardisoSolver:
         finally:
             self._iparm[4] = 0
         if not err and not given:
-            with _ORDERINGS_LOCK:
-                _ORDERINGS[key] = perm
-                while len(_ORDERINGS) > _ORDERINGS_SIZE:
-                    _ORDERINGS.pop(next(iter(_ORDERINGS)))
+            _ORDERINGS.put(key, perm)
         return err
 
     def held(self):

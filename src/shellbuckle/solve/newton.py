@@ -303,7 +303,6 @@ from __future__ import annotations
 
 import inspect
 import logging
-import threading
 import time
 import weakref
 from collections import defaultdict
@@ -319,6 +318,7 @@ from .linear import SingularFactorError, make_solver
 from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
                          curvature_search, mean_edge_length, parabola_minimizer,
                          projected_gradient, restore_volume)
+from .recent import Recent
 from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
@@ -400,7 +400,7 @@ class _Factorization:
         self.handle = self.X = self.energy = self.V_target = self.mu = self.inertia = None
         self.certificate = False  # it shows the tangent Hessian at X positive definite
 
-    def exact(self, energy) -> bool:
+    def definite_for(self, energy) -> bool:
         """Whether this factorization of the KKT matrix of ``energy`` at the point ``self.X``
         (the matrix does not depend on the volume target) shows the tangent Hessian there
         positive definite: an unshifted double-precision one with inertia 0, or a
@@ -408,29 +408,18 @@ class _Factorization:
         return self.certificate and self.energy is not None and self.energy() is energy
 
     def certifies(self, energy, V_target) -> bool:
-        """Whether it is :meth:`exact` for ``energy`` at ``V_target``: it certifies a minimum
+        """Whether it is :meth:`definite_for` ``energy`` at ``V_target``: it certifies a minimum
         there."""
-        return self.exact(energy) and self.V_target == V_target
+        return self.definite_for(energy) and self.V_target == V_target
 
 
-_HELD: dict = {}
+_HELD = Recent(8)
 """``id(solver) -> _Factorization``: the last factorization each recent solver was given by
 Newton's method (a token whose solver has died no longer matches any solver)."""
-_HELD_SIZE = 8
-
-
-_CACHE_LOCK = threading.Lock()
-"""Guards ``_HELD`` and ``_KKT_CACHE``: a Dask worker with several threads (other schedulers
-than the local cluster) runs several runs at once in one process."""
 
 
 def _hold(token: _Factorization) -> None:
-    key = id(token.solver())
-    with _CACHE_LOCK:
-        _HELD.pop(key, None)
-        _HELD[key] = token
-        while len(_HELD) > _HELD_SIZE:
-            _HELD.pop(next(iter(_HELD)))
+    _HELD.put(id(token.solver()), token)
 
 
 def _warm_ok(token, nt) -> bool:
@@ -444,7 +433,7 @@ def _warm_ok(token, nt) -> bool:
     activate = getattr(nt.linsolver, "activate", None)
     if activate is not None and token.handle is not None:
         return bool(activate(token.handle))
-    return _HELD.get(id(nt.linsolver)) is token
+    return _HELD.peek(id(nt.linsolver)) is token
 
 
 def rigid_modes(X: np.ndarray) -> np.ndarray:
@@ -610,8 +599,7 @@ class KKTAssembler:
         return sp.csr_matrix((data, self._indices, self._indptr), shape=(self.n + 1, self.n + 1))
 
 
-_KKT_CACHE: dict = {}
-_KKT_CACHE_SIZE = 4
+_KKT_CACHE = Recent(4)
 
 
 def kkt_assembler(free: np.ndarray, n_dofs: int) -> KKTAssembler:
@@ -619,13 +607,8 @@ def kkt_assembler(free: np.ndarray, n_dofs: int) -> KKTAssembler:
     protocol's three per volume step) so that neither it nor the linear solver redoes its
     pattern analysis; a few recent ones are kept."""
     key = (int(n_dofs), np.asarray(free).tobytes())
-    with _CACHE_LOCK:
-        kkt = _KKT_CACHE.pop(key, None)
-    kkt = kkt or KKTAssembler(free, n_dofs)
-    with _CACHE_LOCK:
-        _KKT_CACHE[key] = kkt
-        while len(_KKT_CACHE) > _KKT_CACHE_SIZE:
-            _KKT_CACHE.pop(next(iter(_KKT_CACHE)))
+    kkt = _KKT_CACHE.get(key) or KKTAssembler(free, n_dofs)
+    _KKT_CACHE.put(key, kkt)
     return kkt
 
 
@@ -1080,7 +1063,7 @@ def _exact_preconditioner(nt, X_ref: np.ndarray, token, single: bool = False):
     certificate where it holds, else unshifted in double precision; the same matrix as the
     minimization that ended at ``X_ref`` factored with the same choice gives the same bits);
     ``None`` where that matrix has a negative direction."""
-    if (isinstance(token, _Factorization) and token.exact(nt.raw_energy)
+    if (isinstance(token, _Factorization) and token.definite_for(nt.raw_energy)
             and token.X is not None and np.array_equal(token.X, X_ref) and _warm_ok(token, nt)):
         return token
     lam, _, _, gV = nt.gradients(X_ref)
