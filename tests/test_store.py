@@ -123,6 +123,34 @@ def test_table_has_spec_columns_in_order_then_analysis_then_others(tmp_path):
         assert csv[column].to_numpy().tobytes() == table[column].to_numpy().tobytes()
 
 
+
+def test_table_csv_reads_back_as_the_table(tmp_path):
+    """Every cell of table.csv reads back (pandas) as the table's value: floats to the bit,
+    integers, an integer column with a gap, booleans, missing values, infinities and text
+    that needs quoting."""
+    with _create(tmp_path / "run") as store:
+        for k in range(4):
+            record = _record(k) | {"pressure": [np.inf, -np.inf, np.nan, 5e-324][k],
+                                   "message": ['a, "quoted" note', None, "plain", "x\ny"][k]}
+            if k == 2:
+                record["inertia"] = None
+            store.append_step(k, store.X0, record)
+        store.update_analysis({1: {"W": 3, "shape": "capsule"}})
+        table = store.table()
+    csv = pd.read_csv(tmp_path / "run" / "table.csv", keep_default_na=False,
+                      na_values=[""])
+    assert list(csv.columns) == list(table.columns)
+    for column in table.columns:
+        got, want = csv[column], table[column]
+        if want.dtype.kind == "f" or column in ("inertia", "W", "n_dimples", "corners"):
+            np.testing.assert_array_equal(got.to_numpy(dtype=float),
+                                          want.to_numpy(dtype=float, na_value=np.nan))
+        else:
+            assert [None if pd.isna(v) else v for v in got] == \
+                [None if pd.isna(v) else v for v in want], column
+    assert table["inertia"].dtype == "Int64" and table["iterations"].dtype == np.int64
+    assert csv["iterations"].dtype == np.int64  # integers are written as integers
+
 def test_empty_run_table_has_spec_header(tmp_path):
     with _create(tmp_path / "run") as store:
         assert store.last_step is None and store.steps == []
