@@ -239,6 +239,46 @@ def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch
     np.testing.assert_allclose(B @ x, b, atol=1e-9 * np.abs(b).max())
 
 
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_orders_a_dense_constraint_row_last_and_the_rest_without_it(monkeypatch):
+    """A KKT matrix's constraint row reaches every other row: METIS orders the rest alone,
+    the dense row is eliminated last, and the factorization is that of the matrix (inertia
+    of the tangent Hessian plus the constraint's (1, 1), solves to round-off)."""
+    from shellbuckle.solve import linear
+
+    K = _shell_like_matrix(12) + 0.3 * sp.identity(432)
+    g = np.random.default_rng(2).standard_normal(432)
+    kkt = sp.bmat([[K, sp.csr_matrix(g[:, None])], [sp.csr_matrix(g[None, :]), None]],
+                  format="csr")
+    sizes, perms = [], []
+    real_call = PardisoSolver._call
+
+    def call(self, phase, *args, **kwargs):
+        if phase == 11:
+            sizes.append(self._n)
+        err = real_call(self, phase, *args, **kwargs)
+        if phase == 11 and kwargs.get("perm") is not None:
+            perms.append(kwargs["perm"].copy())
+        return err
+
+    monkeypatch.setattr(PardisoSolver, "_call", call)
+    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
+    solver = PardisoSolver(n_threads=1)
+    solver.factor(kkt)
+    assert sizes == [432, 433]  # METIS on the rest, then the analysis with that ordering
+    order = perms[-1]
+    assert sorted(order.tolist()) == list(range(433)) and order[-1] == 432
+    Z = np.linalg.svd(g[None, :])[2][1:].T  # orthonormal basis of the tangent space
+    tangent = np.linalg.eigvalsh(Z.T @ K.toarray() @ Z)
+    n_pos, n_neg, n_zero = solver.inertia()
+    assert (n_pos, n_neg, n_zero) == ((tangent > 0).sum() + 1, (tangent < 0).sum() + 1, 0)
+    b = np.random.default_rng(3).standard_normal(433)
+    np.testing.assert_allclose(kkt @ solver.solve(b), b, atol=1e-9 * np.abs(b).max())
+    sizes.clear()
+    PardisoSolver(n_threads=1).factor(K)  # no dense row: METIS on the whole, once
+    assert sizes == [432]
+
 def test_recent_keeps_the_last_used_entries():
     from shellbuckle.solve.recent import Recent
 
