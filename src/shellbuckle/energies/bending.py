@@ -221,35 +221,46 @@ class StarPattern:
         self._slot_sorter = np.argsort(slot_keys)
         self._slot_keys = slot_keys[self._slot_sorter]
         self.V, self.star_ptr, self.star_member = V, star_ptr, star_member
-        # the blocks: every pair of slots of every star, sorted
+        # the blocks: every pair of slots of every star, i.e. the pattern of S S with
+        # S = I + adjacency (two vertices lie in a common star iff they are at most two edges
+        # apart), sorted row by row
         n = np.diff(star_ptr)
+        S = sp.csr_matrix((np.ones(n_slots, dtype=np.int32), star_member, star_ptr),
+                          shape=(V, V))
+        S2 = (S @ S).tocsr()
+        S2.sort_indices()
+        self._bptr = bptr = S2.indptr.astype(np.int64)
+        bcol = S2.indices.astype(np.int64)
+        nbl = np.diff(bptr)
+        brow = np.repeat(np.arange(V), nbl)
+        n_blocks = len(bcol)
+        # block number + 1 at (a, b): offset() looks blocks up row by row (a few entries each)
+        self._block = sp.csr_matrix((np.arange(1, n_blocks + 1), bcol, bptr), shape=(V, V))
+        self.stride = 3 * nbl
         self.star_sq_ptr = np.zeros(V + 1, dtype=np.int64)
         np.cumsum(n * n, out=self.star_sq_ptr[1:])
         owner = np.repeat(np.arange(V), n * n)
         within = np.arange(self.star_sq_ptr[-1]) - self.star_sq_ptr[owner]
         row = star_member[star_ptr[owner] + within // n[owner]]
         col = star_member[star_ptr[owner] + within % n[owner]]
-        self._keys = keys = np.unique(row * V + col)
-        brow, bcol = keys // V, keys % V
-        self._bptr = bptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(np.bincount(brow, minlength=V), out=bptr[1:])
-        nbl = np.diff(bptr)
-        self.stride = 3 * nbl
         self.star_off = self.offset(row, col)
-        self.n_data = 9 * len(keys)
+        self.n_data = 9 * n_blocks
+        # entry (c, d) of block k = (a, b) lies at first[k] + c stride[a] + d; its transpose,
+        # entry (d, c) of block (b, a), at first[k'] + d stride[b] + c
+        first = 9 * bptr[brow] + 3 * (np.arange(n_blocks) - bptr[brow])
+        first_t = self.offset(bcol, brow)
         self.indices = np.empty(self.n_data, dtype=np.int32)
-        first = self.offset(brow, bcol)
+        transpose = np.empty(self.n_data, dtype=np.int64)
         for c in range(3):
             for d in range(3):
-                self.indices[first + c * self.stride[brow] + d] = 3 * bcol + d
+                at = first + c * self.stride[brow] + d
+                self.indices[at] = 3 * bcol + d
+                transpose[at] = first_t + d * self.stride[bcol] + c
         rows = (9 * bptr[:-1, None] + 3 * np.arange(3) * nbl[:, None]).ravel()
         self.indptr = np.append(rows, self.n_data).astype(np.int32)
         row_of = np.repeat(np.arange(3 * V), np.diff(self.indptr))
         upper = np.flatnonzero(self.indices > row_of)
-        transposed = sp.csr_matrix((np.arange(self.n_data, dtype=np.float64), self.indices,
-                                    self.indptr), shape=(3 * V, 3 * V)).T.tocsr()
-        transposed.sort_indices()
-        self.mirror = np.stack([upper, transposed.data.astype(np.int64)[upper]])
+        self.mirror = np.stack([upper, transpose[upper]])
 
     def slot(self, center, member):
         """Global star slot of vertex ``member`` in the star of ``center`` (arrays)."""
@@ -257,16 +268,17 @@ class StarPattern:
 
     def offset(self, a, b):
         """Position of entry ``(0, 0)`` of block ``(a, b)`` in the CSR data (arrays)."""
-        k = np.searchsorted(self._keys, a * self.V + b)
+        a, b = np.asarray(a), np.asarray(b)
+        k = np.asarray(self._block[a.ravel(), b.ravel()]).reshape(a.shape) - 1
         return 9 * self._bptr[a] + 3 * (k - self._bptr[a])
 
     def element_maps(self, FT: np.ndarray):
         """For faces ``FT (3, F)``: the star slot of every corner in the stars of the three
         corners ``(3 centres, 3 corners, F)`` and the offsets of the blocks of every pair of
         corners ``(3, 3, F)``."""
-        slot = np.stack([np.stack([self.slot(FT[p], FT[a]) for a in range(3)]) for p in range(3)])
-        off = np.stack([np.stack([self.offset(FT[p], FT[q]) for q in range(3)]) for p in range(3)])
-        return slot, off
+        centers = np.repeat(FT[:, None, :], 3, axis=1)  # [p, a, f] = FT[p, f]
+        corners = np.repeat(FT[None, :, :], 3, axis=0)  # [p, a, f] = FT[a, f]
+        return self.slot(centers, corners), self.offset(centers, corners)
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         n = 3 * self.V
