@@ -755,7 +755,7 @@ class RunStore:
         nullable ``Int64`` where some steps lack them.
         """
         rows, columns = self._rows()
-        table = pd.DataFrame(copy.deepcopy(rows), columns=columns)
+        table = pd.DataFrame(rows, columns=columns)  # new dicts of scalars: no copy needed
         for column in columns:
             if column in _INTEGER_COLUMNS and _integer_like(table[column]):
                 has_na = table[column].isna().any()
