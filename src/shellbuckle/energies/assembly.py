@@ -15,6 +15,25 @@ import numpy as np
 import scipy.sparse as sp
 
 
+def block_layout(bptr: np.ndarray, bcol: np.ndarray):
+    """The CSR layout over ``3 V`` dofs (vertex-major) of a pattern of 3x3 vertex blocks:
+    block row ``a`` holds blocks ``bptr[a]:bptr[a + 1]`` with columns ``bcol`` (increasing),
+    and each of its three dof rows holds entry ``d`` of every block in turn, so entry
+    ``(c, d)`` of block ``k`` of row ``a`` lies at ``first[k] + c stride[a] + d``. Returns
+    ``(first, stride, indices (int32), indptr (int32))``."""
+    per_row = np.diff(bptr)
+    brow = np.repeat(np.arange(len(per_row)), per_row)
+    stride = 3 * per_row
+    first = 9 * bptr[brow] + 3 * (np.arange(len(bcol)) - bptr[brow])
+    indices = np.empty(9 * len(bcol), dtype=np.int32)
+    for c in range(3):
+        for d in range(3):
+            indices[first + c * stride[brow] + d] = 3 * bcol + d
+    indptr = np.append((9 * bptr[:-1, None] + 3 * np.arange(3) * per_row[:, None]).ravel(),
+                       len(indices)).astype(np.int32)
+    return first, stride, indices, indptr
+
+
 class ElementAssembler:
     """Assembly of element quantities over ``elements (n_el, k)`` vertex indices."""
 
@@ -24,23 +43,13 @@ class ElementAssembler:
         self.n_dofs = 3 * V
         n_el, k = elements.shape
         self.dofs = (3 * elements[:, :, None] + np.arange(3)).reshape(n_el, 3 * k)
-        # the pattern by vertex blocks (a, b), sorted (9 times fewer keys than by dofs); block
-        # row a holds its blocks in increasing b, each with its three dof rows in turn
+        # the pattern by vertex blocks (a, b), sorted (9 times fewer keys than by dofs)
         block_keys = (np.repeat(elements, k, axis=1) * V + np.tile(elements, (1, k))).ravel()
         blocks, block_of = np.unique(block_keys, return_inverse=True)
-        brow, bcol = blocks // V, blocks % V
         bptr = np.zeros(V + 1, dtype=np.int64)
-        np.cumsum(np.bincount(brow, minlength=V), out=bptr[1:])
-        per_row = np.diff(bptr)
-        stride = 3 * per_row  # entries in each dof row of block row a
-        first = 9 * bptr[brow] + 3 * (np.arange(len(blocks)) - bptr[brow])  # entry (0, 0)
-        self.nnz = 9 * len(blocks)
-        self.indices = np.empty(self.nnz, dtype=np.int32)
-        for c in range(3):
-            for d in range(3):
-                self.indices[first + c * stride[brow] + d] = 3 * bcol + d
-        self.indptr = np.append((9 * bptr[:-1, None] + 3 * np.arange(3) * per_row[:, None]).ravel(),
-                                self.nnz).astype(np.int32)
+        np.cumsum(np.bincount(blocks // V, minlength=V), out=bptr[1:])
+        first, stride, self.indices, self.indptr = block_layout(bptr, blocks % V)
+        self.nnz = len(self.indices)
         # local entry (3 i + c, 3 j + d) of an element: first[block (i, j)] + c stride[v_i] + d
         c = np.arange(3)
         self.slot = (first[block_of.reshape(n_el, k, 1, k, 1)]

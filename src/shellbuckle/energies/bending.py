@@ -66,6 +66,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from . import hinge as hg
 from . import kernels
+from .assembly import block_layout
 
 
 @dataclass(frozen=True, eq=False)
@@ -231,12 +232,12 @@ class StarPattern:
         S2.sort_indices()
         self._bptr = bptr = S2.indptr.astype(np.int64)
         bcol = S2.indices.astype(np.int64)
-        nbl = np.diff(bptr)
-        brow = np.repeat(np.arange(V), nbl)
+        brow = np.repeat(np.arange(V), np.diff(bptr))
         n_blocks = len(bcol)
         # block number + 1 at (a, b): offset() looks blocks up row by row (a few entries each)
         self._block = sp.csr_matrix((np.arange(1, n_blocks + 1), bcol, bptr), shape=(V, V))
-        self.stride = 3 * nbl
+        first, self.stride, self.indices, self.indptr = block_layout(bptr, bcol)
+        self.n_data = len(self.indices)
         self.star_sq_ptr = np.zeros(V + 1, dtype=np.int64)
         np.cumsum(n * n, out=self.star_sq_ptr[1:])
         owner = np.repeat(np.arange(V), n * n)
@@ -244,20 +245,13 @@ class StarPattern:
         row = star_member[star_ptr[owner] + within // n[owner]]
         col = star_member[star_ptr[owner] + within % n[owner]]
         self.star_off = self.offset(row, col)
-        self.n_data = 9 * n_blocks
         # entry (c, d) of block k = (a, b) lies at first[k] + c stride[a] + d; its transpose,
         # entry (d, c) of block (b, a), at first[k'] + d stride[b] + c
-        first = 9 * bptr[brow] + 3 * (np.arange(n_blocks) - bptr[brow])
         first_t = self.offset(bcol, brow)
-        self.indices = np.empty(self.n_data, dtype=np.int32)
         transpose = np.empty(self.n_data, dtype=np.int64)
         for c in range(3):
             for d in range(3):
-                at = first + c * self.stride[brow] + d
-                self.indices[at] = 3 * bcol + d
-                transpose[at] = first_t + d * self.stride[bcol] + c
-        rows = (9 * bptr[:-1, None] + 3 * np.arange(3) * nbl[:, None]).ravel()
-        self.indptr = np.append(rows, self.n_data).astype(np.int32)
+                transpose[first + c * self.stride[brow] + d] = first_t + d * self.stride[bcol] + c
         row_of = np.repeat(np.arange(3 * V), np.diff(self.indptr))
         upper = np.flatnonzero(self.indices > row_of)
         self.mirror = np.stack([upper, transpose[upper]])

@@ -386,18 +386,19 @@ class PardisoSolver:
             perm = self._ordering(data)
             if perm is None:  # no dense row: METIS's ordering of the whole, from this analysis
                 perm = np.zeros(self._n, dtype=np.int32)
-                self._iparm[4] = 2
-                try:
-                    err = self._call(11, data, perm=perm)
-                finally:
-                    self._iparm[4] = 0
+                err = self._analyse_ordering(data, perm, given=False)
                 if not err:
                     _ORDERINGS.put(key, perm)
                 return err
             _ORDERINGS.put(key, perm)
-        self._iparm[4] = 1  # use perm
+        return self._analyse_ordering(data, perm.copy(), given=True)
+
+    def _analyse_ordering(self, data, perm: np.ndarray, given: bool) -> int:
+        """Phase 11 with the ordering ``perm`` (``given``, ``iparm[4] = 1``), or with METIS's,
+        returned in ``perm`` (``iparm[4] = 2``); PARDISO's error code."""
+        self._iparm[4] = 1 if given else 2
         try:
-            return self._call(11, data, perm=perm.copy())
+            return self._call(11, data, perm=perm)
         finally:
             self._iparm[4] = 0
 
@@ -420,15 +421,13 @@ class PardisoSolver:
         rest.sort_indices()
         rest = sp.csr_matrix((rest.data.astype(data.dtype), rest.indices.astype(np.int32),
                               rest.indptr.astype(np.int32)), shape=rest.shape)
-        pattern, self._pattern, self._n = self._pattern, rest, rest.shape[0]
+        self._pattern, self._n = rest, rest.shape[0]
         perm = np.zeros(self._n, dtype=np.int32)
-        self._iparm[4] = 2  # return METIS's ordering in perm
         try:
-            err = self._call(11, rest.data, perm=perm)
+            err = self._analyse_ordering(rest.data, perm, given=False)
             self._call(-1, rest.data[:1])  # release that analysis
         finally:
-            self._iparm[4] = 0
-            self._pattern, self._n = pattern, n
+            self._pattern, self._n = upper, n
         if err:
             return None
         return np.concatenate([kept[perm], np.flatnonzero(dense)]).astype(np.int32)

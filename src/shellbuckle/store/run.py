@@ -636,10 +636,11 @@ class RunStore:
         """:meth:`record` without the copy (read only), from the cache while the file is the
         one it was read from (same modification time, size and inode)."""
         path = self._existing_step(k)
+        signature = _signature(path)
         cached = self._record_cache.get(k)
-        if cached is None or cached[0] != _signature(path):
+        if cached is None or cached[0] != signature:
             record = _read_h5(path, lambda f: json.loads(f.attrs["record_json"]))
-            cached = self._record_cache[k] = (_signature(path), record)
+            cached = self._record_cache[k] = (signature, record)
         return cached[1]
 
     def append_step(self, k: int, X, record: Mapping, arrays: Mapping | None = None, *,
