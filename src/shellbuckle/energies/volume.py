@@ -10,7 +10,8 @@ The volume is cubic in the positions and linear in each vertex, which the kernel
   product ``B @ X.ravel()`` with a sparse matrix ``B`` built once per mesh;
 - along a straight line the volume is an exact cubic in the step length
   (:meth:`Volume.along`), so the constraint can be restored along a direction by solving a
-  cubic instead of iterating (see :func:`shellbuckle.solve.linesearch.restore_volume`).
+  cubic instead of iterating (see :func:`shellbuckle.solve.linesearch.restore_volume`;
+  :meth:`Volume.restore` is that restoration as one compiled loop).
 """
 
 from __future__ import annotations
@@ -59,6 +60,14 @@ class Volume:
         """Coefficients ``c`` of the exact cubic ``V(X + t D) = c0 + c1 t + c2 t^2 + c3 t^3``."""
         n = self.n_vertices
         return kernels.volume_along(kernels.positions(X, n), kernels.positions(D, n), self._corner)
+
+    def restore(self, X: np.ndarray, V_target: float,
+                rtol: float = 1e-15) -> tuple[np.ndarray, float]:
+        """A copy of ``X`` moved along the volume gradient to ``V_target``, and the relative
+        error left (:func:`shellbuckle.solve.linesearch.restore_volume`; one compiled call)."""
+        X, err = kernels.restore_volume(kernels.positions(X, self.n_vertices), self._corner,
+                                        float(V_target), float(rtol))
+        return X, float(err)
 
     def hessian(self, X: np.ndarray) -> sp.csr_matrix:
         data = self._hessian_map @ np.asarray(X, dtype=np.float64).ravel()
