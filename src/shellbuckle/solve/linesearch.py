@@ -54,10 +54,11 @@ def restore_volume(volume, X: np.ndarray, V_target: float, *, rtol: float = 1e-1
     Returns ``(X, relative_error)`` (``X`` is a new array). A volume with a ``restore`` method
     (:meth:`~shellbuckle.energies.volume.Volume.restore`) does it itself: at most three passes,
     each the root of the exact cubic along the normal of the current point (the first leaves
-    round-off), as one compiled loop (about 0.1 ms on the paper's mesh, once per line-search
-    trial). Any other volume (``value`` and ``gradient``) takes the Newton iteration of the
-    module docstring, until ``|V - V_target| <= rtol |V_target|`` or until round-off stops the
-    decrease (at most ``max_iter`` passes). The ``relative_error`` is then typically ``1e-16``;
+    round-off), as one compiled loop (0.2 ms in a run on the paper's mesh against 0.28 ms for
+    the same passes in NumPy, once per line-search trial). Any other volume (``value`` and
+    ``gradient``) takes the Newton iteration of the module docstring, until
+    ``|V - V_target| <= rtol |V_target|`` or until round-off stops the decrease (at most
+    ``max_iter`` passes). The ``relative_error`` is then typically ``1e-16``;
     the caller decides what to do when it stays large (a trial point too far from the
     surface).
     """
