@@ -257,8 +257,9 @@ def cubic_root(c, target, t, max_iter):
 def restore_volume(X, FT, V_target, rtol):
     """A copy of ``X`` moved along the volume gradient to ``V = V_target``: at most three
     passes, each taking the root of the exact cubic ``V(X + t grad V)`` next to the first-order
-    step (:func:`shellbuckle.solve.linesearch.restore_volume`, whose loop this is, compiled:
-    one call instead of about ten NumPy and kernel calls per line-search trial). Returns
+    step, stopping as the generic restoration of
+    :func:`shellbuckle.solve.linesearch.restore_volume` does (``rtol``, or round-off); one call
+    instead of about ten NumPy and kernel calls per line-search trial. Returns
     ``(X, relative error)``; the error is infinite where the restoration fails."""
     X = X.copy()
     previous = np.inf

@@ -58,9 +58,8 @@ def restore_volume(volume, X: np.ndarray, V_target: float, *, rtol: float = 1e-1
     the same passes in NumPy, once per line-search trial). Any other volume (``value`` and
     ``gradient``) takes the Newton iteration of the module docstring, until
     ``|V - V_target| <= rtol |V_target|`` or until round-off stops the decrease (at most
-    ``max_iter`` passes). The ``relative_error`` is then typically ``1e-16``;
-    the caller decides what to do when it stays large (a trial point too far from the
-    surface).
+    ``max_iter`` passes). The ``relative_error`` is then typically ``1e-16``; the caller
+    decides what to do when it stays large (a trial point too far from the surface).
     """
     restore = getattr(volume, "restore", None)
     if restore is not None:
