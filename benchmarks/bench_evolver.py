@@ -62,6 +62,18 @@ possible; the ``dx`` column and the shape table (``shellbuckle.analysis.classify
 dents, dent depth, rim radius, angle between the two dent axes) show it.
 Measured results and their reading: ``docs/evolver_comparison.md``.
 
+**Time to the same tolerance** (``--to-tolerance``, with ``--confirm 1``). The two codes stop
+on different tests: shellbuckle on its relative projected-gradient residual (``--tol``, 1e-9),
+Evolver on the energy change of its Newton steps (``--etol``). Before buckling Evolver's test
+over-converges (residuals 1e-11 to 1e-13), after it can stop early (residuals up to 1e-4 on the
+paper's mesh, where the dent still creeps). With ``--to-tolerance`` Evolver records every
+iterate of ``relax`` (energy, ``eigenneg``, CPU time, positions; the recording itself is left
+out of its times), and :func:`time_to_tolerance` finds in each relax the first Newton iterate
+that passes shellbuckle's own test (residual, energy change 1e-10, no negative eigenvalue)
+computed by shellbuckle on Evolver's conformation: Evolver's time to that iterate is its time to
+the same tolerance; a relax that never passes keeps its whole time (in Evolver's favour). The
+table then also prints that time's ratio per step and in total.
+
 ``--json FILE`` writes everything measured (both sides' per-step records, timings, versions).
 ``--keep DIR`` keeps the datafile, the generated command file, Evolver's output and both
 sides' positions in DIR (by default they live in a temporary folder that is removed).
@@ -122,7 +134,9 @@ EVOLVER_RELAX = r"""
 procedure relax(real etol, integer confirm, integer maxit)
 {
   local e_old, de, polish, e_sad, small;
+  SBX_BEGIN
   g 1;
+  SBX_SNAP(0)
   relax_g := relax_g + 1;
   polish := 0;
   small := 0;
@@ -131,6 +145,7 @@ procedure relax(real etol, integer confirm, integer maxit)
   while relax_local < maxit do {
     e_old := total_energy;
     if polish then hessian else hessian_seek;
+    SBX_SNAP(2 - polish)
     relax_newton := relax_newton + 1;
     relax_local := relax_local + 1;
     de := e_old - total_energy;
@@ -142,6 +157,7 @@ procedure relax(real etol, integer confirm, integer maxit)
         } else {
           e_sad := total_energy;
           saddle;
+          SBX_SNAP(3)
           relax_saddles := relax_saddles + 1;
           relax_local := relax_local + 1;
           small := 0;
@@ -157,6 +173,7 @@ procedure relax(real etol, integer confirm, integer maxit)
         if eigenneg > 0 then {
           e_sad := total_energy;
           saddle;
+          SBX_SNAP(3)
           relax_saddles := relax_saddles + 1;
           relax_local := relax_local + 1;
           if e_sad - total_energy <= etol*abs(total_energy) then polish := 1;
@@ -165,8 +182,51 @@ procedure relax(real etol, integer confirm, integer maxit)
                 and abs(de) <= 1e-6*abs(total_energy) then polish := 1;
     };
   };
+  SBX_END
 }
 """
+
+EVOLVER_SNAPSHOT = r"""
+// sbx_snap(kind): after each iteration of relax (0 g, 1 hessian, 2 hessian_seek, 3 saddle),
+// print its energy, eigenneg and CPU time since the step began, and write the positions to
+// snap_<n>.txt; the time this takes is left out of the step's time (sbx_excl).
+procedure sbx_snap(integer kind)
+{
+  local t_in;
+  t_in := clock;
+  sbx_n := sbx_n + 1;
+  printf "SBX_SNAP %d %d %d %d %.17g %.6f %d\n", sbx_n, sbx_step, sbx_relax, kind, total_energy,
+         t_in - sbx_t0 - sbx_excl, eigenneg;
+  { foreach vertex do printf "%d %.17g %.17g %.17g\n", id, x, y, z }
+    >>> sprintf "snap_%d.txt", sbx_n;
+  sbx_excl := sbx_excl + (clock - t_in);
+}
+"""
+
+TRACE_MARKERS = {
+    "SBX_BEGIN": ('sbx_relax := sbx_relax + 1;\n  printf "SBX_RELAX %d %d %.6f\\n", sbx_step, '
+                  "sbx_relax, clock - sbx_t0 - sbx_excl;"),
+    "SBX_END": ('printf "SBX_RELAX_END %d %d %.6f\\n", sbx_step, sbx_relax, '
+                "clock - sbx_t0 - sbx_excl;"),
+}
+
+
+def relax_procedure(trace: bool) -> str:
+    """:data:`EVOLVER_RELAX` with its tracing markers filled in (``trace``: every iteration
+    recorded by ``sbx_snap``, relax start and end times printed) or removed."""
+    lines = []
+    for line in EVOLVER_RELAX.splitlines():
+        marker = line.strip()
+        if marker in TRACE_MARKERS or marker.startswith("SBX_SNAP("):
+            if trace:
+                indent = line[:len(line) - len(line.lstrip())]
+                text = (TRACE_MARKERS[marker] if marker in TRACE_MARKERS
+                        else "sbx_snap" + marker[len("SBX_SNAP"):] + ";")
+                lines.append(indent + text)
+            continue
+        lines.append(line)
+    return "\n".join(lines)
+
 
 STEP_FIELDS = ("step", "target", "E_total", "E_stretch", "E_bend", "volume", "body_pressure",
                "E_before_c0_cycle", "newton", "saddles", "g", "eigenneg", "converged", "cpu_s")
@@ -228,7 +288,7 @@ def pin_rigid_motions(fe: Path, X: np.ndarray) -> tuple[int, int, int]:
 
 def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: float,
                      confirm: int, maxit: int, hessian_normal: bool = False,
-                     jiggles=None, fixed: int | None = None) -> str:
+                     jiggles=None, fixed: int | None = None, trace: bool = False) -> str:
     """The Evolver command file: the relax procedure and one block per volume step.
 
     ``hessian_normal=True`` keeps Evolver's default ``hessian_normal on`` (Newton steps only
@@ -236,10 +296,16 @@ def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: f
     ``jiggles``: per step a ``(V, 3)`` displacement added to every vertex but the ``fixed``
     one (0-based) before the step's minimization, outside the timed part (the protocol's
     jiggle with shellbuckle's random numbers, :func:`jiggle_displacements`).
+    ``trace``: record every iteration of ``relax`` (:data:`EVOLVER_SNAPSHOT`) for
+    :func:`time_to_tolerance`; the recording is left out of the steps' times.
     """
     lines = ["// Generated by benchmarks/bench_evolver.py",
              "relax_newton := 0", "relax_saddles := 0", "relax_g := 0", "relax_ok := 0",
-             "relax_local := 0", EVOLVER_RELAX, "quiet on",
+             "relax_local := 0", "sbx_n := 0", "sbx_step := 0", "sbx_relax := 0",
+             "sbx_excl := 0", "sbx_t0 := clock"]
+    if trace:
+        lines.append(EVOLVER_SNAPSHOT)
+    lines += [relax_procedure(trace), "quiet on",
              f"hessian_normal {'on' if hessian_normal else 'off'}", f"V0 := {V0!r}"]
     fmt = " ".join(["%d", "%.17g"] + ["%.17g"] * 6 + ["%d"] * 5 + ["%.6f"])
     for k, target in enumerate(schedule, start=1):
@@ -253,6 +319,7 @@ def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: f
             f"// step {k}: dV/V = {target!r}",
             'system "date +SBX_WALL_START_%s.%N"',
             "relax_newton := 0", "relax_saddles := 0", "relax_g := 0",
+            f"sbx_step := {k}", "sbx_relax := 0", "sbx_excl := 0",
             "sbx_t0 := clock",
             f"body[1].target := V0 * (1 - {target!r})",
             f"relax({etol!r}, {confirm}, {maxit})",
@@ -265,7 +332,8 @@ def evolver_commands(schedule, V0: float, h_zero: float, c0_cycle: bool, etol: f
                       f"h_zero := {h_zero!r}", "recalc", f"relax({etol!r}, {confirm}, {maxit})",
                       "sbx_ok := sbx_ok * relax_ok"]
         lines += [
-            "sbx_cpu := clock - sbx_t0",
+            "sbx_cpu := clock - sbx_t0 - sbx_excl",
+            f'printf "SBX_EXCL {k} %.6f\\n", sbx_excl',
             'system "date +SBX_WALL_END_%s.%N"',
             f'printf "SBX_STEP {fmt}\\n", {k}, {target!r}, total_energy, stretching.value, '
             "bending.value, body[1].volume, body[1].pressure, sbx_before, relax_newton, "
@@ -298,8 +366,24 @@ def run_evolver(evolver: str, workdir: Path, fe: Path, cmd: Path, timeout: float
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     text = log_path.read_text(errors="replace")
     steps, starts, ends = [], [], []
+    excluded, relaxes = {}, {}  # per step: the recording's CPU time; (step, relax): its record
     for line in text.splitlines():
-        if line.startswith("SBX_STEP "):
+        if line.startswith("SBX_SNAP "):
+            n, step, relax, kind, energy, t, neg = line.split()[1:8]
+            relaxes[(int(step), int(relax))]["snaps"].append(
+                {"n": int(n), "kind": int(kind), "E": float(energy), "t": float(t),
+                 "eigenneg": int(neg)})
+        elif line.startswith("SBX_RELAX "):
+            step, relax, t = line.split()[1:4]
+            relaxes[(int(step), int(relax))] = {"relax": int(relax), "t_start": float(t),
+                                                "t_end": math.nan, "snaps": []}
+        elif line.startswith("SBX_RELAX_END "):
+            step, relax, t = line.split()[1:4]
+            relaxes[(int(step), int(relax))]["t_end"] = float(t)
+        elif line.startswith("SBX_EXCL "):
+            step, t = line.split()[1:3]
+            excluded[int(step)] = float(t)
+        elif line.startswith("SBX_STEP "):
             values = line.split()[1:]
             steps.append({name: (int(v) if name in ("step", "newton", "saddles", "g", "eigenneg",
                                                      "converged") else float(v))
@@ -318,12 +402,58 @@ def run_evolver(evolver: str, workdir: Path, fe: Path, cmd: Path, timeout: float
         X = np.empty((len(data), 3))
         X[data[:, 0].astype(int) - 1] = data[:, 1:]
         rec["X"] = X
+        rec["excluded_s"] = excluded.get(rec["step"], 0.0)
+        rec["relaxes"] = [relaxes[key] for key in sorted(relaxes) if key[0] == rec["step"]]
     version = subprocess.run([evolver, "-V"], stdin=subprocess.DEVNULL, capture_output=True,
                              text=True).stdout.splitlines()
     return {"steps": steps, "process_wall_s": wall,
             "process_cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
             "version": version[0].strip() if version else "unknown",
             "warnings": len(re.findall(r"Hessian not positive definite", text))}
+
+
+def read_snapshot(workdir: Path, n: int) -> np.ndarray:
+    """Positions ``(V, 3)`` that ``sbx_snap`` wrote to ``snap_<n>.txt`` (Evolver ids)."""
+    data = np.array((workdir / f"snap_{n}.txt").read_text().split(), dtype=float).reshape(-1, 4)
+    X = np.empty((len(data), 3))
+    X[data[:, 0].astype(int) - 1] = data[:, 1:]
+    return X
+
+
+def time_to_tolerance(step: dict, energies: list, volume: Volume, workdir: Path, tol: float,
+                      atol: float = 1e-10, etol: float = 1e-10) -> dict:
+    """Evolver's CPU time to shellbuckle's convergence test in one step, from its trace.
+
+    In each ``relax`` of the step (``energies[i]``: shellbuckle's energy of the i-th, with
+    its ``c0``), the first Newton iterate (``hessian`` or ``hessian_seek``) that passes the
+    test shellbuckle's Newton stops on: relative projected-gradient residual
+    ``|grad E - lam grad V| <= tol |grad E| + atol``, energy change of that iteration at most
+    ``etol |E|``, and no negative eigenvalue (``eigenneg = 0`` of the Hessian Evolver factored
+    for it). The time Evolver spends after that iterate in the same relax (polishing further,
+    confirming its own energy test) is not needed for that tolerance and is taken off the
+    step's time; a relax that never passes (it stopped on its own test first) keeps its whole
+    time. Returns ``cpu_s`` (the step's time to tolerance), ``over_s`` (the time taken off) and
+    per relax the iterate that passed (``hit``, its number in the relax, 0 the ``g`` step; or
+    ``None``), its residual and the number of iterates."""
+    out, over = [], 0.0
+    for relax, energy in zip(step["relaxes"], energies):
+        hit, residual, previous = None, math.nan, None
+        for i, snap in enumerate(relax["snaps"]):
+            small = previous is not None and abs(snap["E"] - previous) <= etol * abs(snap["E"])
+            previous = snap["E"]
+            if snap["kind"] not in (1, 2) or snap["eigenneg"] != 0 or not small:
+                continue
+            X = read_snapshot(workdir, snap["n"])
+            gE = energy.gradient(X)
+            _, r = projected_gradient(gE, volume.gradient(X))
+            r_norm, g_norm = float(np.linalg.norm(r)), float(np.linalg.norm(gE))
+            if r_norm <= tol * g_norm + atol:
+                hit, residual = i, r_norm / g_norm
+                over += relax["t_end"] - snap["t"]
+                break
+        out.append({"relax": relax["relax"], "hit": hit, "residual": residual,
+                    "iterates": len(relax["snaps"])})
+    return {"cpu_s": step["cpu_s"] - over, "over_s": over, "relaxes": out}
 
 
 class _StepClock(logging.Handler):
@@ -493,6 +623,13 @@ def main(argv=None) -> int:
                     help="Evolver: extra plain Newton steps after the energy test is met (0: "
                          "residuals comparable to shellbuckle's tolerance; 1: near round-off)")
     ap.add_argument("--maxit", type=int, default=300, help="Evolver: Newton/saddle steps per relax")
+    ap.add_argument("--to-tolerance", action="store_true",
+                    help="also measure Evolver's CPU time to shellbuckle's convergence test: every "
+                         "iterate of Evolver's relax is recorded (outside its timed part) and "
+                         "tested with shellbuckle's residual, and the time Evolver spends after "
+                         "the first iterate that passes is not counted (time_to_tolerance); use "
+                         "with --confirm 1, so that Evolver goes on where its energy test stops "
+                         "early")
     ap.add_argument("--hessian-normal", action="store_true",
                     help="Evolver: keep its default hessian_normal on (normal motion only; for "
                          "reference, it cannot relax in-plane stretching)")
@@ -543,7 +680,8 @@ def main(argv=None) -> int:
                    if args.temperature > 0 else None)
         cmd.write_text(evolver_commands(schedule, V0, 0.5 * c0, args.c0_cycle, args.etol,
                                         args.confirm, args.maxit, args.hessian_normal,
-                                        jiggles, None if pinned is None else pinned[0]))
+                                        jiggles, None if pinned is None else pinned[0],
+                                        trace=args.to_tolerance))
         print(f"# mesh: {args.mesh}, {mesh.n_vertices} vertices, {len(mesh.faces)} faces "
               f"(built in {t_mesh:.1f} s); gamma = {args.gamma:g}, nu = {args.nu:.6g}, kappa = 1, "
               f"c0 = 2/R; {len(schedule)} steps, c0 cycle {'on' if args.c0_cycle else 'off'}, "
@@ -571,6 +709,16 @@ def main(argv=None) -> int:
         se = run_evolver(evolver, workdir, fe, cmd, args.timeout)
         print(f"# Surface Evolver done: {se['process_wall_s']:.1f} s wall, "
               f"{se['process_cpu_s']:.1f} s CPU (whole process)", flush=True)
+        tolerance = None
+        if args.to_tolerance:
+            by_c0 = {c: ShellEnergy.build(mesh, params, bending="evolver", c0=c, form_factors=ff)
+                     for c in (c0, 0.0)}
+            energies = [by_c0[c0], by_c0[0.0], by_c0[c0]] if args.c0_cycle else [by_c0[c0]]
+            tolerance = [time_to_tolerance(e, energies, volume, workdir, args.tol)
+                         for e in se["steps"]]
+            for n in range(1, sum(len(r["snaps"]) for e in se["steps"] for r in e["relaxes"]) + 1):
+                if not args.keep:
+                    (workdir / f"snap_{n}.txt").unlink(missing_ok=True)
         for _ in range(args.ours_runs // 2):
             ours_run()
         ours = mean_of_runs(runs)
@@ -600,6 +748,10 @@ def main(argv=None) -> int:
             "wall_SE": e["wall_s"], "wall_ours": o["wall_s"],
             "converged_SE": bool(e["converged"]), "converged_ours": bool(o["converged"]),
         })
+        if tolerance is not None:
+            t = tolerance[len(rows) - 1]
+            rows[-1].update({"cpu_SE_tol": t["cpu_s"], "over_SE": t["over_s"],
+                             "excluded_SE": e["excluded_s"], "relaxes_SE": t["relaxes"]})
 
     header = (f"{'step':>4} {'dV/V':>6} {'E_stretch SE':>13} {'E_stretch ours':>14} "
               f"{'E_bend SE':>12} {'E_bend ours':>12} {'E_total SE':>19} {'E_total ours':>19} "
@@ -644,6 +796,23 @@ def main(argv=None) -> int:
     print(f"# totals over the steps: CPU Evolver {cpu_se:.2f} s, ours {cpu_us:.2f} s "
           f"(ratio {cpu_se / cpu_us:.2f}); wall Evolver {wall_se:.2f} s, ours {wall_us:.2f} s "
           f"(ratio {wall_se / wall_us:.2f})")
+    tol_totals = None
+    if tolerance is not None:
+        excluded = sum(r["excluded_SE"] for r in rows)
+        over = sum(r["over_SE"] for r in rows)
+        tol_se = sum(r["cpu_SE_tol"] for r in rows)
+        missed = [f"{r['step']}.{x['relax']}" for r in rows for x in r["relaxes_SE"]
+                  if x["hit"] is None]
+        tol_totals = {"excluded_s": excluded, "over_s": over, "cpu_steps_s": tol_se,
+                      "process_cpu_s": se["process_cpu_s"] - excluded - over, "missed": missed}
+        print(f"# to shellbuckle's tolerance (relative residual {args.tol:g}, energy change 1e-10, "
+              f"eigenneg 0): Evolver {tol_se:.2f} s over the steps ({over:.2f} s after the first "
+              f"iterate that passed taken off; {excluded:.2f} s of recording left out), ours "
+              f"{cpu_us:.2f} s: ratio {tol_se / cpu_us:.2f}; whole process "
+              f"{tol_totals['process_cpu_s']:.1f} s; per step "
+              + " ".join(f"{r['step']}:{r['cpu_SE_tol'] / r['cpu_ours']:.1f}" for r in rows)
+              + ("; never passed in relax (step.relax) " + ", ".join(missed) if missed else
+                 "; every relax passed"))
     print("# p = -dE/dV for both (p SE = -body[1].pressure); dx = largest vertex distance between "
           "the two conformations after rigid alignment (R = 1); res = |grad E - lam grad V| / "
           "|grad E| of each side's conformation, computed by shellbuckle; it SE = g + hessian/"
@@ -671,7 +840,8 @@ def main(argv=None) -> int:
                "evolver_process_cpu_s": se["process_cpu_s"],
                "ours_total_wall_s": ours["total_wall_s"], "ours_total_cpu_s": ours["total_cpu_s"],
                "ours_runs_cpu_s": ours["runs_cpu_s"], "reference_workload_ms_after": ref_after,
-               "cpu_ratio": cpu_se / cpu_us, "wall_ratio": wall_se / wall_us, "steps": rows,
+               "cpu_ratio": cpu_se / cpu_us, "wall_ratio": wall_se / wall_us,
+               "to_tolerance": tol_totals, "steps": rows,
                "shapes": shapes}
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(_finite_or_none(out), indent=1) + "\n")

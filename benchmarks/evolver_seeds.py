@@ -19,7 +19,10 @@ buckling; ``-`` if it did not), the CPU time of each side over the steps
 before that step and from it on, the whole-process CPU times (Evolver's process includes
 reading the datafile; ours is the ``deflate`` call, set-up included, the mean of the runs of
 ``--ours-runs``), their ratio, the machine's reference step, and the CPU time of each run of
-ours (one before and one after Evolver's by default).
+ours (one before and one after Evolver's by default). Files written with ``--to-tolerance``
+also give Evolver's time to shellbuckle's tolerance (``bench_evolver.time_to_tolerance``), per
+file, before and after buckling, and pooled, with the relaxes that never passed the test; their
+whole-process time leaves out the time Evolver spent recording its iterates.
 """
 
 from __future__ import annotations
@@ -47,13 +50,19 @@ def summarize(path: Path) -> dict:
     split = min(buckled) if buckled else len(rows) + 1
     before = [r for r in rows if r["step"] < split]
     after = [r for r in rows if r["step"] >= split]
+    tol = data.get("to_tolerance")
+    excluded = tol["excluded_s"] if tol else 0.0
     return {
+        "tol_SE": tol["process_cpu_s"] if tol else None,
+        "tol_before_SE": sum(r["cpu_SE_tol"] for r in before) if tol else None,
+        "tol_after_SE": sum(r["cpu_SE_tol"] for r in after) if tol else None,
+        "tol_missed": tol["missed"] if tol else [],
         "file": path.name, "seed": data.get("seed"), "jiggle_seed": data.get("jiggle_seed"),
         "steps": len(rows), "buckle_SE": _buckling_step(rows, "SE"),
         "buckle_ours": _buckling_step(rows, "ours"),
         "before_SE": sum(r["cpu_SE"] for r in before), "before_ours": sum(r["cpu_ours"] for r in before),
         "after_SE": sum(r["cpu_SE"] for r in after), "after_ours": sum(r["cpu_ours"] for r in after),
-        "cpu_SE": data["evolver_process_cpu_s"], "cpu_ours": data["ours_total_cpu_s"],
+        "cpu_SE": data["evolver_process_cpu_s"] - excluded, "cpu_ours": data["ours_total_cpu_s"],
         "step_ms": (data.get("reference_workload_ms") or {}).get("step_ms", math.nan),
         "runs_ours": data.get("ours_runs_cpu_s") or [data["ours_total_cpu_s"]],
     }
@@ -86,6 +95,26 @@ def main(argv=None) -> int:
     print(f"# {len(rows)} runs: pooled CPU ratio {total_se / total_us:.1f} (Evolver {total_se:.1f} s, "
           f"shellbuckle {total_us:.2f} s); per run {ratios[0]:.1f} to {ratios[-1]:.1f}, median "
           f"{median:.1f}; before buckling {before:.1f}, from the buckling step on {after:.1f}")
+    tol = [r for r in rows if r["tol_SE"] is not None]
+    if tol:
+        # Evolver's time to shellbuckle's tolerance (bench_evolver.py --to-tolerance)
+        print(f"{'file':<34} {'tol before SE':>13} {'tol after SE':>12} {'tol cpu SE':>10} "
+              f"{'ratio':>6}  relaxes that never passed (step.relax)")
+        for r in tol:
+            print(f"{r['file']:<34} {r['tol_before_SE']:>13.1f} {r['tol_after_SE']:>12.1f} "
+                  f"{r['tol_SE']:>10.1f} {r['tol_SE'] / r['cpu_ours']:>6.1f}  "
+                  f"{', '.join(r['tol_missed']) or '-'}")
+        t_se, t_us = sum(r["tol_SE"] for r in tol), sum(r["cpu_ours"] for r in tol)
+        t_ratios = sorted(r["tol_SE"] / r["cpu_ours"] for r in tol)
+        t_median = (t_ratios[len(t_ratios) // 2] if len(t_ratios) % 2 else
+                    0.5 * (t_ratios[len(t_ratios) // 2 - 1] + t_ratios[len(t_ratios) // 2]))
+        t_before = sum(r["tol_before_SE"] for r in tol) / sum(r["before_ours"] for r in tol)
+        t_after_us = sum(r["after_ours"] for r in tol)
+        t_after = sum(r["tol_after_SE"] for r in tol) / t_after_us if t_after_us else math.nan
+        print(f"# to shellbuckle's tolerance, {len(tol)} runs: pooled CPU ratio {t_se / t_us:.1f} "
+              f"(Evolver {t_se:.1f} s, shellbuckle {t_us:.2f} s); per run {t_ratios[0]:.1f} to "
+              f"{t_ratios[-1]:.1f}, median {t_median:.1f}; before buckling {t_before:.1f}, from "
+              f"the buckling step on {t_after:.1f}")
     return 0
 
 
