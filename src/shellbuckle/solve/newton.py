@@ -90,10 +90,7 @@ the same minimum to ten digits). For the same reason ``max_quasi`` is 30 and ``m
 the first, and a factorization (with its assembly) costs about seven steps. Replays of the
 protocol (``benchmarks/bench_replay.py --every 4``): 25-30 % fewer single-precision
 factorizations for 4-16 % more steps, every step at gamma = 271 and 2333 at the stored
-minimum. A full quasi-Newton step that lowers the energy by more than 0.6 of its linear
-prediction (the energy is flatter along it than the model, which predicts half) is doubled
-while the energy keeps falling, at most three times (:func:`_quasi_search`): along a slide
-the steps then cover more of the way each.
+minimum.
 
 Preconditioned relaxation
 -------------------------
@@ -364,10 +361,6 @@ SINGLE_JAM_STEPS = 3
 minimization (module docstring, "Single-precision steps")."""
 QUASI_MIN_ALPHA = 0.05
 """A quasi-Newton step cut below this fraction of its length ends the reuse of a factorization."""
-QUASI_EXTEND = 0.6
-"""A full quasi-Newton step that lowers the energy by more than this fraction of the linear
-prediction ``-slope`` (a quadratic model with the right curvature predicts half of it) is
-doubled while the energy keeps falling (:func:`_quasi_search`)."""
 GAUGE_MAX_COND = 10.0
 """Largest condition number of the six rigid modes on the pinned dofs for which a gauge is kept
 (:func:`pinned_dofs` gives 2-3 on a sphere or a dented shell); above it the dofs are chosen
@@ -899,8 +892,7 @@ def newton(energy, volume, X0, V_target, *, tol_grad: float = 1e-8, atol_grad: f
         if quasi is not None:
             p, slope_p = quasi
             with nt.clock("line_search"):
-                found = _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope_p, max_step,
-                                      extend=True)
+                found = _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope_p, max_step)
             if found is None:
                 quasi_ok = False
                 continue
@@ -1150,51 +1142,19 @@ def _stalled(history: list, window: int = 3, ratio: float = 0.9, progress: float
     return E_old - E_new <= progress * (history[0][1] - history[1][1])
 
 
-def _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step,
-                  extend: bool = False):
+def _quasi_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step):
     """Armijo backtracking along a quasi-Newton step ``p``; below the energy noise, the full
-    step is taken if the energy stays within the noise and the projected gradient falls.
-
-    With ``extend`` (the steps between Newton's factorizations; not the relaxation after a
-    jiggle, whose steps are judged by how far they are cut), a full step that lowers the energy
-    by more than ``QUASI_EXTEND`` of ``-slope`` (the energy is flatter along ``p`` than the
-    model the step came from, which predicts half of ``-slope``) is doubled while the energy
-    keeps falling (:func:`_doubled`). After buckling, while a dent slides to where the mesh
-    pins it, the quasi-Newton steps along the slide are taken in full and each lowers the
-    energy by about as much as the last: there the longer steps cut the iterations of a slide
-    by up to a third (16 meshes, 13 steps of the comparison with Surface Evolver: 7 % fewer
-    iterations, 3 % fewer factorizations, every step's energy the same to 7e-13)."""
-    length = _max_displacement(p)
-    alpha0 = min(1.0, max_step / max(length, np.finfo(float).tiny))
+    step is taken if the energy stays within the noise and the projected gradient falls."""
+    alpha0 = min(1.0, max_step / max(_max_displacement(p), np.finfo(float).tiny))
     path = RestoredPath(energy, volume, X, p, V_target)
     noise = ENERGY_NOISE * abs(E)
     if -slope > noise:
-        found = backtracking(path, E, slope, alpha0)
-        if (extend and found is not None and found[0] == 1.0
-                and E - found[1] > QUASI_EXTEND * -slope):
-            found = _doubled(path, found, E, slope, length, max_step)
-        return found
+        return backtracking(path, E, slope, alpha0)
     E1, X1 = path(alpha0)
     if X1 is not None and E1 <= E + noise:
         if np.linalg.norm(projected_gradient(energy.gradient(X1), volume.gradient(X1))[1]) < r_norm:
             return alpha0, E1, X1
     return None
-
-
-def _doubled(path, found, E: float, slope: float, length: float, max_step: float,
-             times: int = 3):
-    """An accepted step ``found = (alpha, E1, X1)`` along ``path`` (slope ``slope`` at 0, energy
-    ``E`` there, largest vertex move ``length`` at ``alpha = 1``) doubled while the energy keeps
-    falling and stays below the Armijo line, at most ``times`` times and within ``max_step``."""
-    alpha, E1, X1 = found
-    for _ in range(times):
-        if 2.0 * alpha * length > max_step:
-            break
-        E2, X2 = path(2.0 * alpha)
-        if X2 is None or not E2 < E1 or E2 > E + 1e-4 * 2.0 * alpha * slope:
-            break
-        alpha, E1, X1 = 2.0 * alpha, E2, X2
-    return alpha, E1, X1
 
 
 def _rescaled(tau: float, E: float, E_new: float, slope: float, alpha: float) -> float:
@@ -1483,8 +1443,13 @@ def _line_search(energy, volume, X, V_target, E, r, s, slope_s, curv_s, d, curv_
         alpha, E1, X1 = found
         rho = ratio(alpha, E1)
         if extend and alpha == 1.0 and rho > 0.9:
-            alpha, E1, X1 = _doubled(path, (alpha, E1, X1), E, slope_s, _max_displacement(s),
-                                     max_step)
+            for _ in range(3):
+                if 2.0 * alpha * _max_displacement(s) > max_step:
+                    break
+                E2, X2 = path(2.0 * alpha)
+                if X2 is None or not E2 < E1 or E2 > E + 1e-4 * 2.0 * alpha * slope_s:
+                    break
+                alpha, E1, X1 = 2.0 * alpha, E2, X2
         candidates.append(("newton", alpha, E1, X1, rho))
     if d is not None:
         slope_d = float(np.einsum("ij,ij->", r, d))
