@@ -434,7 +434,9 @@ def time_to_tolerance(step: dict, energies: list, volume: Volume, workdir: Path,
     step's time; a relax that never passes (it stopped on its own test first) keeps its whole
     time. Returns ``cpu_s`` (the step's time to tolerance), ``over_s`` (the time taken off) and
     per relax the iterate that passed (``hit``, its number in the relax, 0 the ``g`` step; or
-    ``None``), its residual and the number of iterates."""
+    ``None``), its residual, the number of iterates, the relax's start and end times and its
+    ``trace``: per iterate ``[kind (0 g, 1 hessian, 2 hessian_seek, 3 saddle), energy, CPU time
+    since the step began, eigenneg]``."""
     out, over = [], 0.0
     for relax, energy in zip(step["relaxes"], energies):
         hit, residual, previous = None, math.nan, None
@@ -452,7 +454,9 @@ def time_to_tolerance(step: dict, energies: list, volume: Volume, workdir: Path,
                 over += relax["t_end"] - snap["t"]
                 break
         out.append({"relax": relax["relax"], "hit": hit, "residual": residual,
-                    "iterates": len(relax["snaps"])})
+                    "iterates": len(relax["snaps"]), "t_start": relax["t_start"],
+                    "t_end": relax["t_end"],
+                    "trace": [[x["kind"], x["E"], x["t"], x["eigenneg"]] for x in relax["snaps"]]})
     return {"cpu_s": step["cpu_s"] - over, "over_s": over, "relaxes": out}
 
 
