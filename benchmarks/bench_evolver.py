@@ -399,10 +399,7 @@ def run_evolver(evolver: str, workdir: Path, fe: Path, cmd: Path, timeout: float
                            f"{len(steps)} steps; last output:\n{tail}")
     for rec, t_start, t_end in zip(steps, starts, ends):
         rec["wall_s"] = t_end - t_start
-        data = np.loadtxt(workdir / f"evolver_step{rec['step']}.txt", ndmin=2)
-        X = np.empty((len(data), 3))
-        X[data[:, 0].astype(int) - 1] = data[:, 1:]
-        rec["X"] = X
+        rec["X"] = read_positions(workdir / f"evolver_step{rec['step']}.txt")
         rec["excluded_s"] = excluded.get(rec["step"], 0.0)
         rec["relaxes"] = [relaxes[key] for key in sorted(relaxes) if key[0] == rec["step"]]
     version = subprocess.run([evolver, "-V"], stdin=subprocess.DEVNULL, capture_output=True,
@@ -413,9 +410,10 @@ def run_evolver(evolver: str, workdir: Path, fe: Path, cmd: Path, timeout: float
             "warnings": len(re.findall(r"Hessian not positive definite", text))}
 
 
-def read_snapshot(workdir: Path, n: int) -> np.ndarray:
-    """Positions ``(V, 3)`` that ``sbx_snap`` wrote to ``snap_<n>.txt`` (Evolver ids)."""
-    data = np.array((workdir / f"snap_{n}.txt").read_text().split(), dtype=float).reshape(-1, 4)
+def read_positions(path: Path) -> np.ndarray:
+    """Positions ``(V, 3)`` from a file of ``id x y z`` lines that Evolver wrote (a step's end
+    state or an ``sbx_snap`` snapshot), in the order of Evolver's vertex ids."""
+    data = np.array(path.read_text().split(), dtype=float).reshape(-1, 4)
     X = np.empty((len(data), 3))
     X[data[:, 0].astype(int) - 1] = data[:, 1:]
     return X
@@ -446,7 +444,7 @@ def time_to_tolerance(step: dict, energies: list, volume: Volume, workdir: Path,
             previous = snap["E"]
             if snap["kind"] not in (1, 2) or snap["eigenneg"] != 0 or not small:
                 continue
-            X = read_snapshot(workdir, snap["n"])
+            X = read_positions(workdir / f"snap_{snap['n']}.txt")
             gE = energy.gradient(X)
             _, r = projected_gradient(gE, volume.gradient(X))
             r_norm, g_norm = float(np.linalg.norm(r)), float(np.linalg.norm(gE))
@@ -721,9 +719,9 @@ def main(argv=None) -> int:
             energies = [by_c0[c0], by_c0[0.0], by_c0[c0]] if args.c0_cycle else [by_c0[c0]]
             tolerance = [time_to_tolerance(e, energies, volume, workdir, args.tol)
                          for e in se["steps"]]
-            for n in range(1, sum(len(r["snaps"]) for e in se["steps"] for r in e["relaxes"]) + 1):
-                if not args.keep:
-                    (workdir / f"snap_{n}.txt").unlink(missing_ok=True)
+            if not args.keep:  # ~250 kB each at 3594 vertices, hundreds per run
+                for snapshot in workdir.glob("snap_*.txt"):
+                    snapshot.unlink()
         for _ in range(args.ours_runs // 2):
             ours_run()
         ours = mean_of_runs(runs)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import statistics
 import sys
 from pathlib import Path
 
@@ -68,6 +69,21 @@ def summarize(path: Path) -> dict:
     }
 
 
+def pooled(rows, total: str, before: str, after: str) -> str:
+    """The pooled CPU ratio of ``rows`` with Evolver's time taken from the keys ``total``
+    (whole run), ``before`` and ``after`` (the steps before buckling and from it on), the
+    range and median of the per-run ratios, and the ratios before and after buckling."""
+    total_se, total_us = sum(r[total] for r in rows), sum(r["cpu_ours"] for r in rows)
+    ratios = [r[total] / r["cpu_ours"] for r in rows]
+    ratio_before = sum(r[before] for r in rows) / sum(r["before_ours"] for r in rows)
+    after_us = sum(r["after_ours"] for r in rows)
+    ratio_after = sum(r[after] for r in rows) / after_us if after_us else math.nan
+    return (f"pooled CPU ratio {total_se / total_us:.1f} (Evolver {total_se:.1f} s, shellbuckle "
+            f"{total_us:.2f} s); per run {min(ratios):.1f} to {max(ratios):.1f}, median "
+            f"{statistics.median(ratios):.1f}; before buckling {ratio_before:.1f}, from the "
+            f"buckling step on {ratio_after:.1f}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+", type=Path, help="JSON files written by bench_evolver.py --json")
@@ -85,16 +101,7 @@ def main(argv=None) -> int:
               f"{r['before_ours']:>9.2f} {r['after_SE']:>8.1f} {r['after_ours']:>8.2f} "
               f"{r['cpu_SE']:>7.1f} {r['cpu_ours']:>6.2f} {r['cpu_SE'] / r['cpu_ours']:>6.1f} "
               f"{r['step_ms']:>11.0f} {'/'.join(f'{t:.2f}' for t in r['runs_ours']):>11}")
-    total_se, total_us = sum(r["cpu_SE"] for r in rows), sum(r["cpu_ours"] for r in rows)
-    ratios = sorted(r["cpu_SE"] / r["cpu_ours"] for r in rows)
-    median = (ratios[len(ratios) // 2] if len(ratios) % 2
-              else 0.5 * (ratios[len(ratios) // 2 - 1] + ratios[len(ratios) // 2]))
-    before = sum(r["before_SE"] for r in rows) / sum(r["before_ours"] for r in rows)
-    after_us = sum(r["after_ours"] for r in rows)
-    after = sum(r["after_SE"] for r in rows) / after_us if after_us else math.nan
-    print(f"# {len(rows)} runs: pooled CPU ratio {total_se / total_us:.1f} (Evolver {total_se:.1f} s, "
-          f"shellbuckle {total_us:.2f} s); per run {ratios[0]:.1f} to {ratios[-1]:.1f}, median "
-          f"{median:.1f}; before buckling {before:.1f}, from the buckling step on {after:.1f}")
+    print(f"# {len(rows)} runs: " + pooled(rows, "cpu_SE", "before_SE", "after_SE"))
     tol = [r for r in rows if r["tol_SE"] is not None]
     if tol:
         # Evolver's time to shellbuckle's tolerance (bench_evolver.py --to-tolerance)
@@ -104,17 +111,8 @@ def main(argv=None) -> int:
             print(f"{r['file']:<34} {r['tol_before_SE']:>13.1f} {r['tol_after_SE']:>12.1f} "
                   f"{r['tol_SE']:>10.1f} {r['tol_SE'] / r['cpu_ours']:>6.1f}  "
                   f"{', '.join(r['tol_missed']) or '-'}")
-        t_se, t_us = sum(r["tol_SE"] for r in tol), sum(r["cpu_ours"] for r in tol)
-        t_ratios = sorted(r["tol_SE"] / r["cpu_ours"] for r in tol)
-        t_median = (t_ratios[len(t_ratios) // 2] if len(t_ratios) % 2 else
-                    0.5 * (t_ratios[len(t_ratios) // 2 - 1] + t_ratios[len(t_ratios) // 2]))
-        t_before = sum(r["tol_before_SE"] for r in tol) / sum(r["before_ours"] for r in tol)
-        t_after_us = sum(r["after_ours"] for r in tol)
-        t_after = sum(r["tol_after_SE"] for r in tol) / t_after_us if t_after_us else math.nan
-        print(f"# to shellbuckle's tolerance, {len(tol)} runs: pooled CPU ratio {t_se / t_us:.1f} "
-              f"(Evolver {t_se:.1f} s, shellbuckle {t_us:.2f} s); per run {t_ratios[0]:.1f} to "
-              f"{t_ratios[-1]:.1f}, median {t_median:.1f}; before buckling {t_before:.1f}, from "
-              f"the buckling step on {t_after:.1f}")
+        print(f"# to shellbuckle's tolerance, {len(tol)} runs: "
+              + pooled(tol, "tol_SE", "tol_before_SE", "tol_after_SE"))
     return 0
 
 
