@@ -205,6 +205,30 @@ def test_pardiso_keeps_the_previous_factorizations_of_each_precision():
 
 
 @pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_solves_each_held_approximate_factorization_with_its_own_pivoting():
+    # oracle: dense solutions and inertias. Approximate factorizations pivot on the diagonal
+    # (1x1), a stable_pivots one with Bunch-Kaufman; PARDISO reads the pivoting in its solves
+    # too, so a held 1x1 factorization solved after a Bunch-Kaufman one (or the reverse) must
+    # still give the single-precision solution of its own matrix
+    base = _random_symmetric(50, 1)
+    mats = [base + s * sp.eye(50) for s in (0.0, 4.0)]
+    b = np.random.default_rng(1).standard_normal(50)
+    solver = PardisoSolver()
+    solver.factor(mats[0], approximate=True)
+    diagonal = solver.held()
+    assert solver._approximate._slot_pivots[diagonal[1]] == 0
+    solver.factor(mats[1], approximate=True, stable_pivots=True)
+    stable = solver.held()
+    assert solver._approximate._slot_pivots[stable[1]] == 1
+    for _ in range(2):
+        for A, handle in zip(mats, (diagonal, stable)):
+            eig = np.linalg.eigvalsh(A.toarray())
+            assert solver.activate(handle)
+            assert solver.inertia() == ((eig > 0).sum(), (eig < 0).sum(), 0)
+            np.testing.assert_allclose(A @ solver.solve(b), b, atol=1e-3 * np.abs(b).max())
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
 def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch):
     from shellbuckle.solve import linear
 

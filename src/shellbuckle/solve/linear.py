@@ -44,7 +44,14 @@ certain. A double-precision solver factors a matrix in single precision when ask
 shifted, positive definite preconditioner of its relaxation and for its Newton steps far from
 a minimum (:mod:`.newton`), whose solves are corrected by L-BFGS, and for a certificate of a
 minimum with a margin (:mod:`.newton`, "Single-precision certificates"); QDLDL and SuperLU
-ignore the flag. PARDISO keeps the last two
+ignore the flag. The approximate factorizations pivot on the diagonal only (``iparm[20] = 0``,
+1x1 pivots inside the supernodes instead of Bunch–Kaufman's 1x1 and 2x2: 36-40 against 40-44 ms
+on the matrix below, the same residuals); one in which PARDISO had to perturb a pivot
+(``iparm[13] > 0``) is made again with Bunch–Kaufman pivots, and so is one asked with
+``stable_pivots=True`` (the certificate, whose margin rests on the backward error). PARDISO reads
+``iparm[20]`` in its solves too (a 1x1 factorization solved as a Bunch–Kaufman one gives
+garbage, residuals 5-1400 times the right-hand side), so each held factorization keeps its own.
+PARDISO keeps the last two
 numeric factorizations of a pattern in each precision (``maxfct = 2``): ``held()`` names the
 one in use and ``activate(handle)`` solves with an earlier one again while it is held, so
 that a minimization can start from a factorization made two minimizations earlier (the
@@ -81,6 +88,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import inspect
 
 import numpy as np
 import scipy.sparse as sp
@@ -258,7 +266,7 @@ class PardisoSolver:
     _SLOTS = 2
 
     def __init__(self, n_threads: int | None = None, precision: str = "double",
-                 refinement: int = 2):
+                 refinement: int = 2, diagonal_pivoting: bool = False):
         import ctypes
 
         if precision not in ("double", "single"):
@@ -279,6 +287,8 @@ class PardisoSolver:
         # 33: conditional numerical reproducibility (the same bits on any number of threads)
         self._iparm[[0, 1, 7, 9, 10, 12, 20, 33, 34]] = [1, 2, 0, 8, 0, 0, 1, 1, 1]
         self.precision, self.refinement = precision, int(refinement)
+        # 1x1 pivots only (iparm[20] = 0), Bunch-Kaufman where a pivot had to be perturbed
+        self.diagonal_pivoting = bool(diagonal_pivoting)
         self._iparm[27] = 1 if precision == "single" else 0
         self._pattern = None
         self._n = 0
@@ -293,6 +303,7 @@ class PardisoSolver:
         self._slot_data = [None] * self._SLOTS  # its values (read again by refinement)
         self._slot_signs = [None] * self._SLOTS  # its inertia
         self._slot_matrix = [None] * self._SLOTS  # single precision: (upper, diagonal), refined
+        self._slot_pivots = [1] * self._SLOTS  # its iparm[20]: 1 Bunch-Kaufman, 0 diagonal
 
     def _call(self, phase: int, data, b=None, x=None, slot: int = 0, perm=None) -> int:
         ct = self._ct
@@ -331,15 +342,18 @@ class PardisoSolver:
         except Exception:  # interpreter shutdown: the library may already be gone
             pass
 
-    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
+    def factor(self, A, upper: bool = False, approximate: bool = False,
+               stable_pivots: bool = False) -> None:
         """Factor ``A`` (only its upper triangle is read; ``upper``: ``A`` is that triangle as
-        sorted CSR). ``approximate``: in single precision without refinement, for a double
-        solver (see the module docstring); the following solves and inertia are its."""
+        sorted CSR). ``approximate``: in single precision without refinement and with 1x1
+        pivots, for a double solver (see the module docstring); the following solves and
+        inertia are its. ``stable_pivots``: Bunch–Kaufman pivots in any case."""
         if approximate and self.precision == "double":
             if self._approximate is None:
-                self._approximate = PardisoSolver(self.n_threads, "single", refinement=0)
+                self._approximate = PardisoSolver(self.n_threads, "single", refinement=0,
+                                                  diagonal_pivoting=True)
             self._active = self._approximate
-            self._approximate.factor(A, upper)
+            self._approximate.factor(A, upper, stable_pivots=stable_pivots)
             return
         self._active = self
         if upper and sp.issparse(A) and A.format == "csr" and A.has_sorted_indices:
@@ -366,8 +380,7 @@ class PardisoSolver:
         slot = (self._slot + 1) % self._SLOTS  # overwrite the older factorization
         self._slot, self._serial[slot], self._slot_data[slot] = slot, 0, data
         self._slot_matrix[slot] = refine
-        err = self._call(22, data, slot=slot)
-        self.n_numeric += 1
+        err = self._numeric(data, slot, self.diagonal_pivoting and not stable_pivots)
         if err:
             raise SingularFactorError(f"PARDISO factorization failed (error {err})")
         n_pos, n_neg = int(self._iparm[21]), int(self._iparm[22])
@@ -375,6 +388,19 @@ class PardisoSolver:
         if signs[2]:
             raise SingularFactorError(f"{signs[2]} zero pivot(s) in the PARDISO factorization")
         self._serial[slot] = self.n_numeric  # held only once it succeeded
+
+    def _numeric(self, data, slot: int, diagonal: bool) -> int:
+        """PARDISO's numeric factorization (phase 22) into ``slot``, with 1x1 pivots if
+        ``diagonal`` (made again with Bunch–Kaufman pivots if a pivot had to be perturbed,
+        ``iparm[13]``); PARDISO's error code."""
+        pivots = self._slot_pivots[slot] = self._iparm[20] = 0 if diagonal else 1
+        err = self._call(22, data, slot=slot)
+        self.n_numeric += 1
+        if pivots == 0 and not err and self._iparm[13] > 0:
+            self._slot_pivots[slot] = self._iparm[20] = 1
+            err = self._call(22, data, slot=slot)
+            self.n_numeric += 1
+        return err
 
     def _analyse(self, data) -> int:
         """PARDISO's analysis (phase 11) of ``self._pattern``, with the fill-reducing ordering
@@ -463,6 +489,7 @@ class PardisoSolver:
         dtype = np.float32 if self.precision == "single" else np.float64
         b = np.array(b, dtype=dtype)
         x = np.zeros_like(b)
+        self._iparm[20] = self._slot_pivots[self._slot]  # as the factorization was made
         err = self._call(33, self._slot_data[self._slot], b, x, slot=self._slot)
         if err:
             raise SingularFactorError(f"PARDISO solve failed (error {err})")
@@ -481,6 +508,14 @@ class PardisoSolver:
 
     def inertia(self) -> tuple[int, int, int]:
         return self._active._signs
+
+
+def _takes(function, name: str) -> bool:
+    """Whether ``function`` has a parameter ``name``."""
+    try:
+        return name in inspect.signature(function).parameters
+    except (TypeError, ValueError):
+        return False
 
 
 class CountingSolver:
@@ -503,9 +538,13 @@ class CountingSolver:
         """Whether ``inner`` factors the approximate matrices in single precision."""
         return bool(getattr(self.inner, "single_precision", False))
 
-    def factor(self, A, upper: bool = False, approximate: bool = False) -> None:
+    def factor(self, A, upper: bool = False, approximate: bool = False,
+               stable_pivots: bool = False) -> None:
         self.counts["single" if approximate else "double"] += 1
-        self.inner.factor(A, upper=upper, approximate=approximate)
+        if stable_pivots and _takes(self.inner.factor, "stable_pivots"):
+            self.inner.factor(A, upper=upper, approximate=approximate, stable_pivots=True)
+        else:
+            self.inner.factor(A, upper=upper, approximate=approximate)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         self.counts["solve"] += 1

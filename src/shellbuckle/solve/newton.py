@@ -1221,9 +1221,11 @@ class _Newton:
         else:
             self.kkt = kkt_assembler(self.free, self.n_dofs)
         try:
-            self._approximate_ok = "approximate" in inspect.signature(linsolver.factor).parameters
+            parameters = inspect.signature(linsolver.factor).parameters
         except (TypeError, ValueError):
-            self._approximate_ok = False
+            parameters = {}
+        self._approximate_ok = "approximate" in parameters
+        self._stable_ok = "stable_pivots" in parameters
         # a certificate needs the margin of a shift only where the approximate factorization
         # is in single precision; elsewhere it would save nothing
         self._factors_single = self._approximate_ok and bool(
@@ -1279,19 +1281,21 @@ class _Newton:
         v = v.ravel()
         return sum(c * (M @ v) for M, c in self._terms)
 
-    def factor(self, mu: float, approximate: bool = False):
+    def factor(self, mu: float, approximate: bool = False, stable_pivots: bool = False):
         """Factor the KKT matrix with shift ``mu``: ``(ok, n_neg of the tangent Hessian)``.
         ``approximate``: in single precision where the solver offers it (see :mod:`.linear`),
-        for a preconditioner only."""
+        for a preconditioner only; ``stable_pivots``: with the solver's stable pivoting
+        (Bunch–Kaufman) even then, where the inertia certifies a minimum."""
         A = self.kkt.matrix(self._data, mu)
         approximate = approximate and self._approximate_ok
+        options = {"stable_pivots": True} if stable_pivots and self._stable_ok else {}
         # a failed factorization leaves nothing usable: mark it approximate (never warm)
         token = self.token = _Factorization(self.linsolver, self.kkt, self.pinned, True)
         _hold(token)
         with self.clock("factorization"):
             try:
                 if approximate:
-                    self.linsolver.factor(A, upper=True, approximate=True)
+                    self.linsolver.factor(A, upper=True, approximate=True, **options)
                 else:
                     self.linsolver.factor(A, upper=True)
             except SingularFactorError:
@@ -1313,7 +1317,8 @@ class _Newton:
         certificates"); the solver then holds that factorization."""
         if not self._factors_single:
             return False
-        ok, inertia = self.factor(-CERTIFY_SHIFT * self.diag_scale, approximate=True)
+        ok, inertia = self.factor(-CERTIFY_SHIFT * self.diag_scale, approximate=True,
+                                  stable_pivots=True)
         self.token.certificate = bool(ok and inertia == 0)
         return self.token.certificate
 
