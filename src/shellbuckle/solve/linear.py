@@ -510,7 +510,7 @@ class PardisoSolver:
         return self._active._signs
 
 
-def _takes(function, name: str) -> bool:
+def accepts(function, name: str) -> bool:
     """Whether ``function`` has a parameter ``name``."""
     try:
         return name in inspect.signature(function).parameters
@@ -541,7 +541,7 @@ class CountingSolver:
     def factor(self, A, upper: bool = False, approximate: bool = False,
                stable_pivots: bool = False) -> None:
         self.counts["single" if approximate else "double"] += 1
-        if stable_pivots and _takes(self.inner.factor, "stable_pivots"):
+        if stable_pivots and accepts(self.inner.factor, "stable_pivots"):
             self.inner.factor(A, upper=upper, approximate=approximate, stable_pivots=True)
         else:
             self.inner.factor(A, upper=upper, approximate=approximate)

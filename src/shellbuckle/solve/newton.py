@@ -301,7 +301,6 @@ the relaxation's steps are not counted against it. ``nit`` counts every accepted
 
 from __future__ import annotations
 
-import inspect
 import logging
 import time
 import weakref
@@ -315,7 +314,7 @@ from numba import njit
 
 from ..energies.kernels import add_scaled_at
 from .lbfgs import SecantPairs
-from .linear import SingularFactorError, make_solver
+from .linear import SingularFactorError, accepts, make_solver
 from .linesearch import (ENERGY_NOISE, RestoredPath, backtracking, check_problem,
                          curvature_search, mean_edge_length, parabola_minimizer,
                          projected_gradient, restore_volume)
@@ -1220,12 +1219,8 @@ class _Newton:
             self.set_gauge(X, pinned)
         else:
             self.kkt = kkt_assembler(self.free, self.n_dofs)
-        try:
-            parameters = inspect.signature(linsolver.factor).parameters
-        except (TypeError, ValueError):
-            parameters = {}
-        self._approximate_ok = "approximate" in parameters
-        self._stable_ok = "stable_pivots" in parameters
+        self._approximate_ok = accepts(linsolver.factor, "approximate")
+        self._stable_ok = accepts(linsolver.factor, "stable_pivots")
         # a certificate needs the margin of a shift only where the approximate factorization
         # is in single precision; elsewhere it would save nothing
         self._factors_single = self._approximate_ok and bool(
