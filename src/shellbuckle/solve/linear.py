@@ -527,6 +527,7 @@ class CountingSolver:
     def __init__(self, inner):
         self.inner = make_solver(inner)
         self.counts = dict(double=0, single=0, solve=0)
+        self._stable_ok = accepts(self.inner.factor, "stable_pivots")
 
     @property
     def n_factor(self) -> int:
@@ -541,10 +542,8 @@ class CountingSolver:
     def factor(self, A, upper: bool = False, approximate: bool = False,
                stable_pivots: bool = False) -> None:
         self.counts["single" if approximate else "double"] += 1
-        if stable_pivots and accepts(self.inner.factor, "stable_pivots"):
-            self.inner.factor(A, upper=upper, approximate=approximate, stable_pivots=True)
-        else:
-            self.inner.factor(A, upper=upper, approximate=approximate)
+        options = {"stable_pivots": True} if stable_pivots and self._stable_ok else {}
+        self.inner.factor(A, upper=upper, approximate=approximate, **options)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         self.counts["solve"] += 1
