@@ -11,6 +11,7 @@ from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.protocol.deflate import Protocol, init, step
 from shellbuckle.protocol.schedule import linear_schedule
+from shellbuckle.solve.linear import _load_mkl
 
 
 def _run(mesh, params, protocol):
@@ -220,7 +221,7 @@ def test_a_step_gives_the_same_bits_on_any_number_of_threads():
     results = []
     for threads in (1, 2):
         with threadpool_limits(limits=threads, user_api="blas"):  # the caller's BLAS threads
-            ctx, state = init(mesh, params, protocol, threads=threads)
+            ctx, state = init(mesh, params, protocol, threads=threads, reproducible=True)
             state, record = step(ctx, state)
         results.append((state.X, record))
     (X1, r1), (X2, r2) = results
@@ -230,3 +231,6 @@ def test_a_step_gives_the_same_bits_on_any_number_of_threads():
     assert r1["iterations"] == r2["iterations"]
     with pytest.raises(ValueError, match="threads must be an integer >= 1, got 0"):
         init(mesh, params, protocol, threads=0)
+    if _load_mkl() is not None:
+        with pytest.raises(ValueError, match="plain mode .* got 2 threads"):
+            init(mesh, params, protocol, threads=2, reproducible=False)

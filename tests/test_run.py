@@ -14,6 +14,7 @@ from shellbuckle.cli import main
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run, continue_from, deflate, resume
+from shellbuckle.solve.linear import _load_mkl
 
 PARAMS = ShellParameters.from_gamma(271.0, nu=1 / 3)
 OPTIONS = dict(dv=0.03, until=0.24, jiggle=0.02, seed=7)
@@ -100,6 +101,26 @@ def test_a_run_whose_certificates_turn_to_double_precision_resumes_exactly(tmp_p
     out = tmp_path / "part"
     deflate(mesh, PARAMS, out=out, max_steps=5, **OPTIONS)
     _compare(resume(out).table, full.table)
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_a_run_goes_on_in_the_pardiso_mode_it_was_made_in(tmp_path):
+    # PARDISO's plain mode (one thread) and its reproducible mode (several) give other bits;
+    # a run stores its mode and a resumed run uses it whatever threads it is given (oracle:
+    # the uninterrupted run in the same mode, to the last bit)
+    full = {}
+    for threads in (1, 2):
+        full[threads] = deflate(icosphere(4), PARAMS, out=tmp_path / f"full{threads}",
+                                threads=threads, **OPTIONS)
+    assert full[1].store.meta["extra"]["pardiso_mode"] == "plain"
+    assert full[2].store.meta["extra"]["pardiso_mode"] == "reproducible"
+    a, b = full[1].table, full[2].table
+    assert not a["E_total"].equals(b["E_total"])  # the modes differ: the stored one matters
+    np.testing.assert_allclose(a["E_total"], b["E_total"], rtol=1e-9)
+    for made, resumed in ((1, 2), (2, 1)):
+        out = tmp_path / f"part{made}"
+        deflate(icosphere(4), PARAMS, out=out, threads=made, max_steps=3, **OPTIONS)
+        _compare(resume(out, threads=resumed).table, full[made].table)
 
 
 def test_reinflation_branch_keeps_the_reference(tmp_path, uninterrupted):

@@ -128,7 +128,7 @@ def test_pardiso_gives_the_same_bits_on_any_number_of_threads():
     b = np.random.default_rng(3).standard_normal(A.shape[0])
     results = []
     for threads in (1, 2, 3):
-        solver = PardisoSolver(n_threads=threads)
+        solver = PardisoSolver(n_threads=threads, reproducible=True)
         solver.factor(A)
         results.append((solver.inertia(), solver.solve(b)))
     for inertia, x in results[1:]:
@@ -136,6 +136,34 @@ def test_pardiso_gives_the_same_bits_on_any_number_of_threads():
         assert np.array_equal(x, results[0][1])  # bitwise: reproducibility mode
     assert results[0][0][1] > 0  # indefinite: Bunch-Kaufman pivots were exercised
     np.testing.assert_allclose(A @ results[0][1], b, atol=1e-9 * np.abs(b).max())
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
+def test_pardiso_plain_mode_is_one_thread_deterministic_and_accurate():
+    # the plain mode (the default on one thread) is faster and gives other bits than the
+    # reproducible mode; it must give the same bits every time, in both precisions, and be
+    # refused on several threads, where its results may depend on their number
+    A = _shell_like_matrix()
+    b = np.random.default_rng(4).standard_normal(A.shape[0])
+    assert PardisoSolver(n_threads=1).reproducible is False
+    assert PardisoSolver(n_threads=2).reproducible is True
+    solutions = []
+    for _ in range(2):
+        solver = PardisoSolver(n_threads=1)
+        for approximate in (False, True):
+            for _ in range(2):
+                solver.factor(A, approximate=approximate)
+                solutions.append((approximate, solver.inertia(), solver.solve(b)))
+    for approximate, inertia, x in solutions:
+        same = [y for a, _, y in solutions if a == approximate]
+        assert all(np.array_equal(x, y) for y in same)
+        assert inertia == solutions[0][1] and inertia[1] > 0
+        tol = 1e-4 if approximate else 1e-9  # single precision without refinement
+        np.testing.assert_allclose(A @ x, b, atol=tol * np.abs(b).max())
+    with pytest.raises(ValueError, match="plain mode .* runs on one thread, got 2 threads"):
+        PardisoSolver(n_threads=2, reproducible=False)
+    with pytest.raises(ValueError, match="reproducible must be True, False or None, got 'yes'"):
+        make_solver("pardiso", threads=1, reproducible="yes")
 
 
 def test_threads_are_checked_and_default_to_the_environment(monkeypatch):

@@ -24,7 +24,7 @@ from .params import ShellParameters
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
-from .solve.linear import check_threads
+from .solve.linear import check_threads, default_threads
 from .store.run import RunStore
 
 log = logging.getLogger(__name__)
@@ -155,7 +155,13 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     minimum before the cycle when the way there is downhill (see
     :func:`~shellbuckle.protocol.deflate.downhill_path`); off, always at the flat minimum.
     ``threads``: threads of the sparse factorization (default: the cores this process may
-    use); a matter of speed only, the results are the same bits on any number.
+    use). On one thread PARDISO runs in its plain mode, on several in its reproducible mode,
+    which gives the same bits on any number of threads; the plain mode is 6-10 % faster and
+    gives other bits (:mod:`shellbuckle.solve.linear`). The run stores the mode it was made
+    with (``meta["extra"]["pardiso_mode"]``, :func:`solver_mode`) and a resumed run uses it
+    whatever its threads: a run made on one thread goes on on one thread, and one made on
+    several goes on bit for bit on any number (one included). ``deflate(..., threads=1)``
+    repeats a sweep's run (its workers have one thread each).
     """
     from .mesh.random_sphere import random_sphere
 
@@ -179,7 +185,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     out = Path(out) if out is not None else default_out(params, seed)
     rest = None if form_factors is None else {"form_factors": np.asarray(form_factors, float)}
     store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
-                            X0=mesh.X, faces=mesh.faces, rest=rest)
+                            X0=mesh.X, faces=mesh.faces, rest=rest,
+                            extra_meta={SOLVER_MODE: solver_mode(threads)})
     return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
                   threads=threads)
 
@@ -219,7 +226,8 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
                "fixed_dV_over_V": None}
     protocol = Protocol.from_dict(fields)
     params = parent.params_at(step)
-    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict())
+    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict(),
+                                extra_meta={SOLVER_MODE: solver_mode(None)})
     mesh = Mesh.from_arrays(store.X0, store.faces)
     return _drive(store, mesh, params, protocol, progress=progress)
 
@@ -259,7 +267,8 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
             if np.ndim(value) == 0 else "given",
             "fixed_dV_over_V": fixed, "parent": str(parent.path.resolve()), "parent_step": step}
     store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict(),
-                                extra_meta={"path": path}, record={"gamma": params.gamma})
+                                extra_meta={"path": path, SOLVER_MODE: solver_mode(None)},
+                                record={"gamma": params.gamma})
     mesh = Mesh.from_arrays(store.X0, store.faces)
     return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
 
@@ -343,10 +352,31 @@ def _side(run, step: int) -> dict:
     return out
 
 
+SOLVER_MODE = "pardiso_mode"
+"""Key of PARDISO's mode in a run's ``meta["extra"]``: ``"plain"`` or ``"reproducible"``
+(:mod:`shellbuckle.solve.linear`); a run stored without it was made in the reproducible mode."""
+
+
+def solver_mode(threads: int | None) -> str:
+    """PARDISO's mode for a new run on ``threads`` threads (default
+    :func:`~shellbuckle.solve.linear.default_threads`): plain on one, reproducible on several."""
+    return "reproducible" if (threads or default_threads()) > 1 else "plain"
+
+
 def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
            max_steps: int | None = None, threads: int | None = None) -> Run:
+    mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
+    if mode not in ("plain", "reproducible"):
+        raise ValueError(f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
+                         f"'reproducible'")
+    if mode == "plain" and threads is not None and threads > 1:
+        log.info("run %s was made in PARDISO's plain mode on one thread: it goes on on one "
+                 "thread (%d asked) to give the same bits", store.path, threads)
+    if mode == "plain":
+        threads = 1
     ctx, state = protocol_mod.init(mesh, params, protocol,
-                                   form_factors=store.rest.get("form_factors"), threads=threads)
+                                   form_factors=store.rest.get("form_factors"), threads=threads,
+                                   reproducible=mode == "reproducible")
     try:
         last = store.last_step
         if last is None:

@@ -29,8 +29,11 @@ Neither does a run depend on the machine's number of cores: ``init`` and ``step`
 and SciPy's BLAS on one thread (a threaded dot product sums in another order: the main job's
 energies differed in the 15th digit with two OpenBLAS threads from step 1 on, and after
 buckling such differences choose another trajectory), and PARDISO, which may use several
-threads (``init(..., threads=)``), gives the same bits on any number of them
-(:mod:`shellbuckle.solve.linear`).
+threads (``init(..., threads=)``), gives the same bits on any number of them in its
+reproducible mode (``init(..., reproducible=True)``, the default on several threads); its
+plain mode, the default on one thread, is faster and gives other bits
+(:mod:`shellbuckle.solve.linear`), so a run stores its mode and a resumed run uses it
+(:func:`shellbuckle.run.deflate`).
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..solve import minimize
-from ..solve.linear import check_threads, make_solver
+from ..solve.linear import check_mode, check_threads, default_threads, make_solver
 from ..solve.linesearch import RestoredPath
 from ..solve.newton import ABANDONED, pinned_dofs
 from ..solve.pressure import minimize_at_pressure
@@ -284,16 +287,20 @@ def continue_after(ctx: Context, record: dict) -> None:
 
 
 @one_blas_thread
-def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int | None = None):
+def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int | None = None,
+         reproducible: bool | None = None):
     """Build the run context and the step-0 state (the initial mesh ``mesh.X``).
 
     The stretching rest state is the initial mesh, or ``form_factors`` (Surface Evolver's
     per-face rest metrics) when given; ``V0`` is the volume of the initial mesh. ``threads``:
     the sparse factorization's threads (default
-    :func:`~shellbuckle.solve.linear.default_threads`); the results do not depend on it.
+    :func:`~shellbuckle.solve.linear.default_threads`), ``reproducible`` PARDISO's mode
+    (default: reproducible on several threads, plain on one); the results depend on the mode,
+    not on the threads.
     """
     if threads is not None:
         threads = check_threads(threads)
+    check_mode(reproducible, default_threads() if threads is None else threads)
     c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
     energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0,
                                form_factors=form_factors)
@@ -303,7 +310,8 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
-                  V0=V0, contact=ContactChecker(mesh.topology), solver=make_solver(threads=threads),
+                  V0=V0, contact=ContactChecker(mesh.topology),
+                  solver=make_solver(threads=threads, reproducible=reproducible),
                   c0=c0,
                   pinned=pinned_dofs(mesh.X))
     return ctx, State(step=0, X=np.array(mesh.X, float))

@@ -48,7 +48,8 @@ ignore the flag. The approximate factorizations pivot on the diagonal only (``ip
 1x1 pivots inside the supernodes instead of Bunch–Kaufman's 1x1 and 2x2: 36-40 against 40-44 ms
 on the matrix below, the same residuals); one in which PARDISO had to perturb a pivot
 (``iparm[13] > 0``) is made again with Bunch–Kaufman pivots, and so is one asked with
-``stable_pivots=True`` (the certificate, whose margin rests on the backward error). PARDISO reads
+``stable_pivots=True`` (Newton's single-precision certificates did so until their margin was
+measured with 1x1 pivots too, :mod:`.newton`). PARDISO reads
 ``iparm[20]`` in its solves too (a 1x1 factorization solved as a Bunch–Kaufman one gives
 garbage, residuals 5-1400 times the right-hand side), so each held factorization keeps its own.
 PARDISO keeps the last two
@@ -69,14 +70,24 @@ pays for one once for its two precisions, and later runs on the same mesh in the
 (a sweep's worker, a notebook) not at all; the factors are bitwise those of the first
 analysis.
 
-PARDISO runs in its conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its
-results are bitwise the same on any number of threads (checked with 1, 2, 3, 4 and 8 threads on
-that matrix) and the thread count is a matter of speed only: ``PardisoSolver(n_threads)``,
-default :func:`default_threads` (the cores this process may use, or ``MKL_NUM_THREADS`` /
-``OMP_NUM_THREADS`` when set, as in the sweep's workers). The count is set thread-locally
+PARDISO runs in one of two modes (``reproducible``). On several threads it runs in its
+conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its results are bitwise the
+same on any number of threads (checked with 1, 2, 3, 4 and 8 threads on that matrix) and the
+thread count is a matter of speed only. On one thread it runs in its plain mode
+(``iparm[33] = 0``), which is deterministic there and lays out the factors so that solves are
+faster: on the matrix above, one thread, a single-precision 1x1 factorization solves in 1.6-1.7
+against 2.3-2.5 ms, a double-precision one in 2.5-2.8 against 2.8-3.2 ms (``bench_newton_parts.py``),
+and a whole run of the comparison's protocol takes 6-10 % less time. The two modes give
+different bits (single-precision solves differ by about ``1e-6`` relative), so the mode is
+part of what reproduces a run: the run stores it and a resumed run uses it
+(:func:`shellbuckle.run.deflate`), whatever the threads it is given. ``PardisoSolver(n_threads,
+reproducible=None)``: ``n_threads`` default :func:`default_threads` (the cores this process may
+use, or ``MKL_NUM_THREADS`` / ``OMP_NUM_THREADS`` when set, as in the sweep's workers);
+``reproducible`` defaults to ``n_threads > 1``, and the plain mode needs one thread (its results
+on several may depend on their number). The count is set thread-locally
 around each call (``mkl_set_num_threads_local``), so that a global limit on MKL's BLAS threads
 (see :func:`shellbuckle.protocol.deflate.step`) does not apply to PARDISO. On the matrix
-above two threads factor in 48-56 ms instead of 90 ms and solve in 2 ms instead of 4.5 ms.
+above two threads factor in 48-56 ms instead of 90 ms.
 
 ``SuperLUSolver``: SciPy's ``splu`` in symmetric mode with diagonal pivoting only
 (``diag_pivot_thresh=0``) and a minimum-degree ordering of ``A + A^T``; then
@@ -216,6 +227,19 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
+def check_mode(reproducible, threads: int) -> bool:
+    """PARDISO's mode for ``threads`` threads: ``reproducible`` as a bool, ``threads > 1`` for
+    ``None``; a ``ValueError`` for the plain mode on several threads or a value not a bool."""
+    if reproducible is None:
+        return threads > 1
+    if not isinstance(reproducible, (bool, np.bool_)):
+        raise ValueError(f"reproducible must be True, False or None, got {reproducible!r}")
+    if not reproducible and threads > 1:
+        raise ValueError(f"PARDISO's plain mode (reproducible=False) runs on one thread, got "
+                         f"{threads} threads; use reproducible=True or one thread")
+    return bool(reproducible)
+
+
 def check_threads(threads) -> int:
     """``threads`` as a positive int, or a ``ValueError`` naming the bad value."""
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
@@ -266,7 +290,8 @@ class PardisoSolver:
     _SLOTS = 2
 
     def __init__(self, n_threads: int | None = None, precision: str = "double",
-                 refinement: int = 2, diagonal_pivoting: bool = False):
+                 refinement: int = 2, diagonal_pivoting: bool = False,
+                 reproducible: bool | None = None):
         import ctypes
 
         if precision not in ("double", "single"):
@@ -282,10 +307,12 @@ class PardisoSolver:
         self._set_local_threads = self._mkl.MKL_Set_Num_Threads_Local
         self._set_local_threads.restype = ctypes.c_int
         self.n_threads = default_threads() if n_threads is None else check_threads(n_threads)
+        self.reproducible = check_mode(reproducible, self.n_threads)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
         # 33: conditional numerical reproducibility (the same bits on any number of threads)
-        self._iparm[[0, 1, 7, 9, 10, 12, 20, 33, 34]] = [1, 2, 0, 8, 0, 0, 1, 1, 1]
+        self._iparm[[0, 1, 7, 9, 10, 12, 20, 33, 34]] = [1, 2, 0, 8, 0, 0, 1,
+                                                         int(self.reproducible), 1]
         self.precision, self.refinement = precision, int(refinement)
         # 1x1 pivots only (iparm[20] = 0), Bunch-Kaufman where a pivot had to be perturbed
         self.diagonal_pivoting = bool(diagonal_pivoting)
@@ -351,7 +378,8 @@ class PardisoSolver:
         if approximate and self.precision == "double":
             if self._approximate is None:
                 self._approximate = PardisoSolver(self.n_threads, "single", refinement=0,
-                                                  diagonal_pivoting=True)
+                                                  diagonal_pivoting=True,
+                                                  reproducible=self.reproducible)
             self._active = self._approximate
             self._approximate.factor(A, upper, stable_pivots=stable_pivots)
             return
@@ -564,11 +592,11 @@ class CountingSolver:
 _BACKENDS = {"qdldl": QDLDLSolver, "superlu": SuperLUSolver, "pardiso": PardisoSolver}
 
 
-def make_solver(solver=None, threads: int | None = None):
+def make_solver(solver=None, threads: int | None = None, reproducible: bool | None = None):
     """A linear solver from ``None`` or ``"auto"`` (PARDISO if Intel MKL loads, else QDLDL),
     a backend name (``"qdldl"``, ``"superlu"``, ``"pardiso"``), or a solver object.
-    ``threads``: PARDISO's threads (default :func:`default_threads`); QDLDL and SuperLU run on
-    one.
+    ``threads``: PARDISO's threads (default :func:`default_threads`), ``reproducible`` its mode
+    (default: on several threads; see the module docstring); QDLDL and SuperLU run on one.
 
     A solver object is anything with ``factor``, ``solve`` and ``inertia`` methods as
     described in the module docstring; it is returned unchanged.
@@ -581,7 +609,9 @@ def make_solver(solver=None, threads: int | None = None):
                              f"{sorted(_BACKENDS)}")
         if threads is not None:
             threads = check_threads(threads)
-        return PardisoSolver(threads) if solver == "pardiso" else _BACKENDS[solver]()
+        if solver == "pardiso":
+            return PardisoSolver(threads, reproducible=reproducible)
+        return _BACKENDS[solver]()
     missing = [m for m in ("factor", "solve", "inertia") if not callable(getattr(solver, m, None))]
     if missing:
         raise ValueError(f"linear solver {solver!r} lacks method(s) {missing}")
