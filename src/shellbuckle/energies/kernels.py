@@ -652,7 +652,9 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
     ``Hess a`` has blocks ``((e_c . e_d) I - e_d e_c^T - 4 ga_c ga_d^T) / (2 rho)
     - A_cd [nhat]_x / 2`` (``A`` the cyclic antisymmetric 3x3 matrix of the corners), and the
     third derivative contracted with ``v`` has blocks ``(C_cd + C_dc^T - A_cd [P m / rho]_x
-    + E_c^T Q E_d) / 2`` with ``C_cd = [v_{c+2} - v_{c+1}]_x^T P E_d / rho``."""
+    + E_c^T Q E_d) / 2`` with ``C_cd = [v_{c+2} - v_{c+1}]_x^T P E_d / rho``. The face's term
+    is a Hessian: its blocks ``(c, d)`` are computed for ``c <= d`` only and ``(d, c)`` is added
+    as the transpose (a third fewer products in the face loop)."""
     V, nf = X.shape[0], FT.shape[1]
     data[:] = 0.0
     Fv, Mv, S = _star_perp_sums(X, FT)
@@ -717,7 +719,7 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
                                    + P[i, 2] * E[d, 2, j]) / rho
                     QE[d, i, j] = Q[i, 0] * E[d, 0, j] + Q[i, 1] * E[d, 1, j] + Q[i, 2] * E[d, 2, j]
         for c in range(3):
-            for d in range(3):
+            for d in range(c, 3):  # the block (d, c) is the transpose of (c, d)
                 for i in range(3):
                     for j in range(3):
                         cross_cd = EV[c, 0, i] * PE[d, 0, j] + EV[c, 1, i] * PE[d, 1, j] + EV[c, 2, i] * PE[d, 2, j]
@@ -726,6 +728,8 @@ def star_perp_hessian(X, FT, modulus, h0, weight, face_slot, face_off, star_ptr,
                         L[i, j] = (0.5 * (cross_cd + cross_dc - A[c, d] * Sm[i, j] + nqn)
                                    - 0.5 * A[c, d] * Sg[i, j] + gS * HA[c, d, i, j])
                 _add_block(data, face_off[c, d, f], stride[FT[c, f]], 1.0, L, False)
+                if d != c:
+                    _add_block(data, face_off[d, c, f], stride[FT[d, f]], 1.0, L, True)
     # J^T D J, vertex by vertex over the pairs of slots of its star
     DJ = np.empty((64, 7, 3))  # D J of each slot of one star (grown for a larger star)
     for v in range(V):

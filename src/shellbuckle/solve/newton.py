@@ -203,10 +203,16 @@ are those of ``K - sigma I + E`` with a backward error ``|E|`` of the order of t
 single-precision round-off times ``|K|``; inertia 0 shows ``K + E > sigma I``, so ``K`` is
 positive definite as long as ``|E| < sigma``. Measured on the paper's mesh (gamma = 271, the
 bending energy of Surface Evolver, the 13 minima of the protocol to dV/V = 0.247, bisection
-on the shift to 24 bits): the smallest tangent eigenvalue seen by the single-precision
+on the shift to 40 bits): the smallest tangent eigenvalue seen by the single-precision
 factorizations lies 1.4e-8 to 2.3e-8 ``mean|diag K|`` above the one seen in double precision,
 40 to 70 times below ``sigma``; before buckling that eigenvalue is ``4e-6`` to
-``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. Where the single-precision
+``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. That was with Bunch–Kaufman pivots
+in PARDISO's reproducible mode. The certificate now pivots on the diagonal (1x1) as the other
+single-precision factorizations do (:mod:`.linear`), on one thread in PARDISO's plain mode:
+measured again the same way (minima of random_sphere(3594, seed) for seeds 1 and 2, 26 in
+all), the 1x1 factorizations see the smallest eigenvalue 0.85e-8 to 2.5e-8 above double
+precision (40 to 120 times below ``sigma``; Bunch–Kaufman 2.0e-8 to 3.6e-8), and none had to
+be made again with Bunch–Kaufman pivots; such a factorization costs 31-35 against 50-54 ms. Where the single-precision
 factorization shows a negative eigenvalue (a saddle, a soft post-buckling valley, or a stiff
 shell on a fine mesh, whose smallest eigenvalue scales as ``1 / (gamma N)``), the unshifted
 double-precision factorization decides, as without this option, and the minimization does
@@ -1220,7 +1226,6 @@ class _Newton:
         else:
             self.kkt = kkt_assembler(self.free, self.n_dofs)
         self._approximate_ok = accepts(linsolver.factor, "approximate")
-        self._stable_ok = accepts(linsolver.factor, "stable_pivots")
         # a certificate needs the margin of a shift only where the approximate factorization
         # is in single precision; elsewhere it would save nothing
         self._factors_single = self._approximate_ok and bool(
@@ -1276,21 +1281,19 @@ class _Newton:
         v = v.ravel()
         return sum(c * (M @ v) for M, c in self._terms)
 
-    def factor(self, mu: float, approximate: bool = False, stable_pivots: bool = False):
+    def factor(self, mu: float, approximate: bool = False):
         """Factor the KKT matrix with shift ``mu``: ``(ok, n_neg of the tangent Hessian)``.
         ``approximate``: in single precision where the solver offers it (see :mod:`.linear`),
-        for a preconditioner only; ``stable_pivots``: with the solver's stable pivoting
-        (Bunch–Kaufman) even then, where the inertia certifies a minimum."""
+        for a preconditioner or a certificate with a margin (:meth:`certify_single`)."""
         A = self.kkt.matrix(self._data, mu)
         approximate = approximate and self._approximate_ok
-        options = {"stable_pivots": True} if stable_pivots and self._stable_ok else {}
         # a failed factorization leaves nothing usable: mark it approximate (never warm)
         token = self.token = _Factorization(self.linsolver, self.kkt, self.pinned, True)
         _hold(token)
         with self.clock("factorization"):
             try:
                 if approximate:
-                    self.linsolver.factor(A, upper=True, approximate=True, **options)
+                    self.linsolver.factor(A, upper=True, approximate=True)
                 else:
                     self.linsolver.factor(A, upper=True)
             except SingularFactorError:
@@ -1312,8 +1315,7 @@ class _Newton:
         certificates"); the solver then holds that factorization."""
         if not self._factors_single:
             return False
-        ok, inertia = self.factor(-CERTIFY_SHIFT * self.diag_scale, approximate=True,
-                                  stable_pivots=True)
+        ok, inertia = self.factor(-CERTIFY_SHIFT * self.diag_scale, approximate=True)
         self.token.certificate = bool(ok and inertia == 0)
         return self.token.certificate
 
