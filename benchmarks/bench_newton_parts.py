@@ -21,6 +21,9 @@ give the same bits:
 - PARDISO's analysis of the KKT pattern in single precision: with METIS, and with the ordering
   of an earlier analysis of the same pattern (what the double-precision solver and later runs
   on the same mesh now do; the factors are the same bits);
+- PARDISO's factorizations and solves on one thread in its plain mode (the default there)
+  against its reproducible mode (the default on several threads), for the three kinds of
+  factorization Newton's method makes;
 
 and, for scale, one energy value and gradient, one Hessian assembly, one single-precision
 factorization and one solve. Times are medians of process time over ``--repeat`` calls.
@@ -167,7 +170,30 @@ def main(argv=None) -> int:
     print(f"{'single-precision solve':<34} {t_solve:>9.3f}")
     print(f"# {args.vertices} vertices, KKT matrix {upper.shape[0]} rows, {upper.nnz} entries in "
           f"its upper triangle; 'same bits': the two forms' results compared exactly")
+    pardiso_modes(upper, b, repeat, args.repeat)
     return 0
+
+
+def pardiso_modes(upper, b, repeat_factor: int, repeat_solve: int) -> None:
+    """PARDISO on one thread in its plain mode (the default there) against its reproducible
+    mode (``iparm[33] = 1``, the default on several threads), for the factorizations Newton's
+    method makes: double precision with Bunch-Kaufman pivots, single precision with 1x1 pivots
+    (steps, preconditioners, certificates) and with Bunch-Kaufman pivots."""
+    kinds = [("double, Bunch-Kaufman", "double", False), ("single, 1x1", "single", True),
+             ("single, Bunch-Kaufman", "single", False)]
+    print(f"# PARDISO on one thread, ms: plain mode (now) against reproducible mode\n"
+          f"{'factorization':<24} {'factor plain':>12} {'reproducible':>12} {'solve plain':>12} "
+          f"{'reproducible':>12}")
+    for label, precision, diagonal in kinds:
+        row = []
+        for reproducible in (False, True):
+            solver = linear.PardisoSolver(1, precision, refinement=0, diagonal_pivoting=diagonal,
+                                          reproducible=reproducible)
+            solver.factor(upper, upper=True)
+            row.append((process_ms(lambda: solver.factor(upper, upper=True), repeat_factor),
+                        process_ms(lambda: solver.solve(b), repeat_solve)))
+        (f0, s0), (f1, s1) = row
+        print(f"{label:<24} {f0:>12.2f} {f1:>12.2f} {s0:>12.3f} {s1:>12.3f}")
 
 
 if __name__ == "__main__":
