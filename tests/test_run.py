@@ -124,6 +124,23 @@ def test_a_run_goes_on_in_the_pardiso_mode_it_was_made_in(tmp_path):
         _compare(resume(out, threads=resumed).table, full[made].table)
 
 
+def test_a_run_with_an_unknown_pardiso_mode_is_refused_before_any_step(tmp_path):
+    import json
+
+    out = tmp_path / "run"
+    deflate(icosphere(3), PARAMS, out=out, max_steps=1, dv=0.03, until=0.09, threads=1)
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["extra"]["pardiso_mode"] == "plain"
+    meta["extra"]["pardiso_mode"] = "fast"
+    (out / "run.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="stores PARDISO mode 'fast'; expected 'plain' or "
+                                         "'reproducible'"):
+        resume(out)
+    stored = Run.open(out)
+    assert stored.steps == [0, 1]  # nothing lost
+    assert stored.status == "failed"
+
+
 def test_reinflation_branch_keeps_the_reference(tmp_path, uninterrupted):
     k = uninterrupted.steps[-1]
     back = continue_from(uninterrupted, k, tmp_path / "back", dv=-0.06, until=0.05)

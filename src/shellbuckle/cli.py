@@ -280,8 +280,9 @@ def _register_deflate(sub) -> None:
 def _add_threads_option(parser) -> None:
     parser.add_argument("--threads", type=int,
                         help="threads of the sparse factorization (default: the cores this "
-                             "process may use, or MKL_NUM_THREADS); the results are the same "
-                             "on any number")
+                             "process may use, or MKL_NUM_THREADS); one thread runs PARDISO's "
+                             "faster plain mode, several its reproducible mode (the same bits "
+                             "on any number); a run keeps its mode when resumed")
 
 
 def _cmd_deflate(args) -> int:

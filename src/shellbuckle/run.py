@@ -367,8 +367,11 @@ def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress:
            max_steps: int | None = None, threads: int | None = None) -> Run:
     mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
     if mode not in ("plain", "reproducible"):
-        raise ValueError(f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
-                         f"'reproducible'")
+        message = (f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
+                   f"'reproducible'")
+        store.set_status("failed", message)
+        store.close()
+        raise ValueError(message)
     if mode == "plain" and threads is not None and threads > 1:
         log.info("run %s was made in PARDISO's plain mode on one thread: it goes on on one "
                  "thread (%d asked) to give the same bits", store.path, threads)

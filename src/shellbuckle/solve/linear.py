@@ -310,7 +310,8 @@ class PardisoSolver:
         self.reproducible = check_mode(reproducible, self.n_threads)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
-        # 33: conditional numerical reproducibility (the same bits on any number of threads)
+        # 33: conditional numerical reproducibility (the same bits on any number of threads) in
+        # the reproducible mode, 0 in the plain mode (one thread, faster solves)
         self._iparm[[0, 1, 7, 9, 10, 12, 20, 33, 34]] = [1, 2, 0, 8, 0, 0, 1,
                                                          int(self.reproducible), 1]
         self.precision, self.refinement = precision, int(refinement)
