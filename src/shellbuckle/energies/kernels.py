@@ -510,14 +510,21 @@ def _face_geometry(X, FT, f, e, ga):
 
 
 @njit(cache=True, nogil=True)
-def _star_perp_sums(X, FT):
+def _star_perp_sums(X, FT, keep=None):
     """Evolver's vertex sums: ``F`` (area gradient), ``M`` (half area vectors), ``S`` (star
-    area), :mod:`.evolver_bending`."""
+    area), :mod:`.evolver_bending`. ``keep (F, 22)``, if given, receives each face's geometry
+    (``e``, ``ga``, ``n``, ``rho`` of :func:`_face_geometry`) for a later pass."""
     V = X.shape[0]
     Fv, Mv, S = np.zeros((V, 3)), np.zeros((V, 3)), np.zeros(V)
     e, ga = np.empty((3, 3)), np.empty((3, 3))
     for f in range(FT.shape[1]):
         n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
+        if keep is not None:
+            for c in range(3):
+                for k in range(3):
+                    keep[f, 3 * c + k] = e[c, k]
+                    keep[f, 9 + 3 * c + k] = ga[c, k]
+            keep[f, 18], keep[f, 19], keep[f, 20], keep[f, 21] = n0, n1, n2, rho
         for c in range(3):
             v = FT[c, f]
             for k in range(3):
@@ -596,7 +603,8 @@ def star_perp(X, FT, modulus, h0, weight, gradient):
     ``h0``, ``weight`` per vertex). Returns ``(value, G)``, ``G (0, 3)`` without
     ``gradient``."""
     V = X.shape[0]
-    Fv, Mv, S = _star_perp_sums(X, FT)
+    keep = np.empty((FT.shape[1] if gradient else 0, 22))  # the faces' geometry, computed once
+    Fv, Mv, S = _star_perp_sums(X, FT, keep if gradient else None)
     dgv = np.empty((V if gradient else 0, 7))
     dh, dg, D = np.empty(6), np.empty(7), np.empty((7, 7))
     value = 0.0
@@ -609,7 +617,11 @@ def star_perp(X, FT, modulus, h0, weight, gradient):
         return value, G
     e, ga, vF, ev = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     for f in range(FT.shape[1]):
-        n0, n1, n2, rho = _face_geometry(X, FT, f, e, ga)
+        for c in range(3):
+            for k in range(3):
+                e[c, k] = keep[f, 3 * c + k]
+                ga[c, k] = keep[f, 9 + 3 * c + k]
+        n0, n1, n2, rho = keep[f, 18], keep[f, 19], keep[f, 20], keep[f, 21]
         h = (n0 / rho, n1 / rho, n2 / rho)  # nhat
         gM0, gM1, gM2, gS = _face_weights(dgv, FT, f, vF)
         # Hess(a) vF = 1/2 [(N^T N vF - 4 grad_a (grad_a . vF)) / rho + nhat x (vF_{c+2} - vF_{c+1})]
