@@ -24,7 +24,7 @@ from .params import ShellParameters
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
-from .solve.linear import check_threads, default_threads
+from .solve.linear import check_mode, check_threads, default_threads
 from .store.run import RunStore
 
 log = logging.getLogger(__name__)
@@ -360,7 +360,7 @@ SOLVER_MODE = "pardiso_mode"
 def solver_mode(threads: int | None) -> str:
     """PARDISO's mode for a new run on ``threads`` threads (default
     :func:`~shellbuckle.solve.linear.default_threads`): plain on one, reproducible on several."""
-    return "reproducible" if (threads or default_threads()) > 1 else "plain"
+    return "reproducible" if check_mode(None, threads or default_threads()) else "plain"
 
 
 def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,

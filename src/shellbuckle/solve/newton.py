@@ -202,21 +202,21 @@ single-precision factorization of the KKT matrix whose tangent Hessian is shifte
 are those of ``K - sigma I + E`` with a backward error ``|E|`` of the order of the
 single-precision round-off times ``|K|``; inertia 0 shows ``K + E > sigma I``, so ``K`` is
 positive definite as long as ``|E| < sigma``. Measured on the paper's mesh (gamma = 271, the
-bending energy of Surface Evolver, the 13 minima of the protocol to dV/V = 0.247, bisection
-on the shift to 40 bits): the smallest tangent eigenvalue seen by the single-precision
-factorizations lies 1.4e-8 to 2.3e-8 ``mean|diag K|`` above the one seen in double precision,
-40 to 70 times below ``sigma``; before buckling that eigenvalue is ``4e-6`` to
-``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. That was with Bunch–Kaufman pivots
-in PARDISO's reproducible mode. The certificate now pivots on the diagonal (1x1) as the other
+bending energy of Surface Evolver, the 13 minima of the protocol to dV/V = 0.247, bisection on
+the shift to 40 bits): the smallest tangent eigenvalue seen by the single-precision
+factorizations lies 1.4e-8 to 2.3e-8 ``mean|diag K|`` above the one seen in double precision, 40
+to 70 times below ``sigma``; before buckling that eigenvalue is ``4e-6`` to
+``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. That was with Bunch–Kaufman pivots in PARDISO's
+reproducible mode. The certificate now pivots on the diagonal (1x1) as the other
 single-precision factorizations do (:mod:`.linear`), on one thread in PARDISO's plain mode:
-measured again the same way (minima of random_sphere(3594, seed) for seeds 1 and 2, 26 in
-all), the 1x1 factorizations see the smallest eigenvalue 0.85e-8 to 2.5e-8 above double
-precision (40 to 120 times below ``sigma``; Bunch–Kaufman 2.0e-8 to 3.6e-8), and none had to
-be made again with Bunch–Kaufman pivots; such a factorization costs 31-35 against 50-54 ms. Where the single-precision
-factorization shows a negative eigenvalue (a saddle, a soft post-buckling valley, or a stiff
-shell on a fine mesh, whose smallest eigenvalue scales as ``1 / (gamma N)``), the unshifted
-double-precision factorization decides, as without this option, and the minimization does
-not try again. A reported inertia other than 0 therefore always comes from a
+measured again the same way (minima of random_sphere(3594, seed) for seeds 1 and 2, 26 in all),
+the 1x1 factorizations see the smallest eigenvalue 0.85e-8 to 2.5e-8 above double precision (40
+to 120 times below ``sigma``; Bunch–Kaufman 2.0e-8 to 3.6e-8), and none had to be made again
+with Bunch–Kaufman pivots; such a factorization costs 31-35 against 50-54 ms. Where the
+single-precision factorization shows a negative eigenvalue (a saddle, a soft post-buckling
+valley, or a stiff shell on a fine mesh, whose smallest eigenvalue scales as ``1 / (gamma N)``),
+the unshifted double-precision factorization decides, as without this option, and the
+minimization does not try again. A reported inertia other than 0 therefore always comes from a
 double-precision factorization.
 
 The certificate's factorization is then the one the solver holds: the next minimizations
