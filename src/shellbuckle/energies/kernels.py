@@ -255,38 +255,46 @@ def cubic_root(c, target, t, max_iter):
 
 @njit(cache=True, nogil=True)
 def restore_volume(X, FT, V_target, rtol):
-    """A copy of ``X`` moved along the volume gradient to ``V = V_target``: at most three
-    passes, each taking the root of the exact cubic ``V(X + t grad V)`` next to the first-order
-    step, stopping as the generic restoration of
-    :func:`shellbuckle.solve.linesearch.restore_volume` does (``rtol``, or round-off); one call
-    instead of about ten NumPy and kernel calls per line-search trial. Returns
-    ``(X, relative error)``; the error is infinite where the restoration fails."""
+    """A copy of ``X`` moved along the volume gradient ``G`` at ``X`` to ``V = V_target``: the
+    root of the exact cubic ``V(X + t G)`` next to the first-order step, then at most two
+    first-order corrections along the same ``G`` for the round-off the cubic leaves, stopping
+    as the generic restoration of :func:`shellbuckle.solve.linesearch.restore_volume` does
+    (``rtol``, or round-off: the error no longer halves). The corrections reuse ``G`` and
+    ``|G|^2``: the error they remove is round-off, about ``1e-15`` relative, so the change of
+    the gradient along the cubic's move does not matter, and a correction costs one volume
+    pass instead of three (gradient, cubic, volume). One call instead of about ten NumPy and
+    kernel calls per line-search trial. Returns ``(X, relative error)``; the error is
+    infinite where the restoration fails."""
     X = X.copy()
+    value, G = volume(X, FT, True)
+    residual = value - V_target
+    err = abs(residual) / abs(V_target)
+    if not np.isfinite(err):
+        return X, np.inf
+    if err <= rtol:
+        return X, err
+    gg = 0.0
+    for v in range(G.shape[0]):
+        gg += G[v, 0] * G[v, 0] + G[v, 1] * G[v, 1] + G[v, 2] * G[v, 2]
+    if gg == 0.0:
+        return X, np.inf
+    t = cubic_root(volume_along(X, G, FT), V_target, -residual / gg, 30)
+    if not np.isfinite(t):
+        return X, np.inf
     previous = np.inf
-    err = np.inf
     for it in range(3):
-        value, G = volume(X, FT, it == 0)
-        residual = value - V_target
-        err = abs(residual) / abs(V_target)
-        if not np.isfinite(err):
-            return X, np.inf
-        if err <= rtol or (it >= 2 and err >= 0.5 * previous):
-            return X, err
-        previous = err
-        if it > 0:
-            G = volume(X, FT, True)[1]
-        gg = 0.0
-        for v in range(G.shape[0]):
-            gg += G[v, 0] * G[v, 0] + G[v, 1] * G[v, 1] + G[v, 2] * G[v, 2]
-        if gg == 0.0:
-            return X, np.inf
-        t = cubic_root(volume_along(X, G, FT), V_target, -residual / gg, 30)
-        if not np.isfinite(t):
-            return X, np.inf
         for v in range(G.shape[0]):
             for k in range(3):
                 X[v, k] += t * G[v, k]
-    return X, abs(volume(X, FT, False)[0] - V_target) / abs(V_target)
+        residual = volume(X, FT, False)[0] - V_target
+        err = abs(residual) / abs(V_target)
+        if not np.isfinite(err):
+            return X, np.inf
+        if err <= rtol or it == 2 or err >= 0.5 * previous:
+            return X, err
+        previous = err
+        t = -residual / gg
+    return X, err
 
 
 @njit(cache=True, nogil=True, inline="always")
