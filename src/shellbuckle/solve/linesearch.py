@@ -52,10 +52,10 @@ def restore_volume(volume, X: np.ndarray, V_target: float, *, rtol: float = 1e-1
     """Move ``X`` along the constraint normal until ``V(X) = V_target``.
 
     Returns ``(X, relative_error)`` (``X`` is a new array). A volume with a ``restore`` method
-    (:meth:`~shellbuckle.energies.volume.Volume.restore`) does it itself: at most three passes,
-    each the root of the exact cubic along the normal of the current point (the first leaves
-    round-off), as one compiled loop (0.2 ms in a run on the paper's mesh against 0.28 ms for
-    the same passes in NumPy, once per line-search trial). Any other volume (``value`` and
+    (:meth:`~shellbuckle.energies.volume.Volume.restore`) does it itself: the root of the exact
+    cubic along the normal of ``X`` (it leaves round-off), then at most two first-order
+    corrections along that same normal, as one compiled loop (0.16 ms in a run on the paper's
+    mesh, once per line-search trial). Any other volume (``value`` and
     ``gradient``) takes the Newton iteration of the module docstring, until
     ``|V - V_target| <= rtol |V_target|`` or until round-off stops the decrease (at most
     ``max_iter`` passes). The ``relative_error`` is then typically ``1e-16``; the caller
