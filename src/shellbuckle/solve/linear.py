@@ -74,19 +74,20 @@ PARDISO runs in one of two modes (``reproducible``). On several threads it runs 
 conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its results are bitwise the
 same on any number of threads (checked with 1, 2, 3, 4 and 8 threads on that matrix) and the
 thread count is a matter of speed only. On one thread it runs in its plain mode
-(``iparm[33] = 0``), which is deterministic there and lays out the factors so that solves are faster: on the
-matrix above, one thread, a single-precision 1x1 factorization solves in 1.6-1.7 against 2.3-2.5
-ms, a double-precision one in 2.5-2.8 against 2.8-3.2 ms (``bench_newton_parts.py``), and a
-whole run of the comparison's protocol takes 6-10 % less time. The two modes give different bits
-(single-precision solves differ by about ``1e-6`` relative), so the mode is part of what
-reproduces a run: the run stores it and a resumed run uses it (:func:`shellbuckle.run.deflate`),
-whatever the threads it is given. ``PardisoSolver(n_threads, reproducible=None)``: ``n_threads``
-default :func:`default_threads` (the cores this process may use, or ``MKL_NUM_THREADS`` /
-``OMP_NUM_THREADS`` when set, as in the sweep's workers); ``reproducible`` defaults to
-``n_threads > 1``, and the plain mode needs one thread (its results on several may depend on
-their number). The count is set thread-locally around each call (``mkl_set_num_threads_local``),
-so that a global limit on MKL's BLAS threads (see :func:`shellbuckle.protocol.deflate.step`)
-does not apply to PARDISO. On the matrix above two threads factor in 48-56 ms instead of 90 ms.
+(``iparm[33] = 0``), which is deterministic there and lays out the factors so that solves are
+faster: on the matrix above, one thread, a single-precision 1x1 factorization solves in 1.6-1.7
+against 2.3-2.5 ms, a double-precision one in 2.5-2.8 against 2.8-3.2 ms
+(``bench_newton_parts.py``), and a whole run of the comparison's protocol takes 6-10 % less time.
+The two modes give different bits (single-precision solves differ by about ``1e-6``
+relative), so the mode is part of what reproduces a run: the run stores it and a resumed run
+uses it (:func:`shellbuckle.run.deflate`), whatever the threads it is given.
+``PardisoSolver(n_threads, reproducible=None)``: ``n_threads`` default :func:`default_threads`
+(the cores this process may use, or ``MKL_NUM_THREADS`` / ``OMP_NUM_THREADS`` when set, as in
+the sweep's workers); ``reproducible`` defaults to ``n_threads > 1``, and the plain mode needs
+one thread (its results on several may depend on their number). The count is set
+thread-locally around each call (``mkl_set_num_threads_local``), so that a global limit on MKL's
+BLAS threads (see :func:`shellbuckle.protocol.deflate.step`) does not apply to PARDISO. On the
+matrix above two threads factor in 48-56 ms instead of 90 ms.
 
 ``SuperLUSolver``: SciPy's ``splu`` in symmetric mode with diagonal pivoting only
 (``diag_pivot_thresh=0``) and a minimum-degree ordering of ``A + A^T``; then

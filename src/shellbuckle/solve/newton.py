@@ -212,8 +212,8 @@ bending energy of Surface Evolver, the 13 minima of the protocol to dV/V = 0.247
 the shift to 40 bits): the smallest tangent eigenvalue seen by the single-precision
 factorizations lies 1.4e-8 to 2.3e-8 ``mean|diag K|`` above the one seen in double precision, 40
 to 70 times below ``sigma``; before buckling that eigenvalue is ``4e-6`` to
-``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. That was with Bunch–Kaufman pivots in PARDISO's
-reproducible mode. The certificate now pivots on the diagonal (1x1) as the other
+``1.5e-5 mean|diag K|``, after it ``1e-8`` to ``8e-8``. That was with Bunch–Kaufman pivots in
+PARDISO's reproducible mode. The certificate now pivots on the diagonal (1x1) as the other
 single-precision factorizations do (:mod:`.linear`), on one thread in PARDISO's plain mode:
 measured again the same way (minima of random_sphere(3594, seed) for seeds 1 and 2, 26 in all),
 the 1x1 factorizations see the smallest eigenvalue 0.85e-8 to 2.5e-8 above double precision (40
