@@ -84,6 +84,7 @@ def _register_theory(sub) -> None:
                         help="figure file, .png or .pdf (default shellbuckle_theory.png)")
     parser.add_argument("--json", action="store_true",
                         help="print the numbers as one JSON object")
+    _add_convention_option(parser, default="helfrich")
 
     def run(args) -> int:
         import json
@@ -96,7 +97,8 @@ def _register_theory(sub) -> None:
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            params = ShellParameters.from_gamma(args.gamma, nu=args.nu)
+            params = ShellParameters.from_gamma(args.gamma, nu=args.nu,
+                                                energy_convention=args.energy_convention)
         for w in caught:
             print(f"shellbuckle theory: warning: {w.message}", file=sys.stderr)
         out = Path(args.out)
@@ -108,17 +110,21 @@ def _register_theory(sub) -> None:
             print(json.dumps({**info, "figure": str(out)}))
             return 0
         print(params.describe().splitlines()[0])
+        if params.energy_convention != "helfrich":
+            print(params.describe().splitlines()[-1])
         xc = info["crossing_dV_over_V"]
         if xc is None:
             print("crossing U_sphere = U_axisym: none (U_axisym > U_sphere for all dV/V)")
         else:
-            pref = info["crossing_asymptotic_dV_over_V"] * params.gamma ** 0.6
+            pref = info["crossing_asymptotic_dV_over_V"] * params.gamma_effective ** 0.6
             print(f"crossing U_sphere = U_axisym: dV/V = {xc:.4g} "
                   f"(exact Green-Lagrange sphere: {info['crossing_dV_over_V_exact_sphere']:.4g}; "
                   f"thin-shell law {pref:.4g} gamma^(-3/5) = "
                   f"{info['crossing_asymptotic_dV_over_V']:.4g})")
-        print(f"classical threshold: p_c = 4 sqrt(kappa A)/R^2 = "
-              f"{info['classical_pressure']:.4g} kappa/R^3, dV/V = 6(1-nu)/sqrt(gamma) = "
+        g = "gamma" if params.energy_convention == "helfrich" else "gamma_effective"
+        k = "kappa" if params.energy_convention == "helfrich" else "f kappa"
+        print(f"classical threshold: p_c = 4 sqrt({k} A)/R^2 = "
+              f"{info['classical_pressure']:.4g} kappa/R^3, dV/V = 6(1-nu)/sqrt({g}) = "
               f"{info['classical_dV_over_V']:.4g} "
               f"(exact pressure-volume relation: {info['classical_dV_over_V_exact']:.4g})")
         print(f"figure: {out}")
@@ -187,25 +193,36 @@ def _add_material_options(parser) -> None:
     group.add_argument("--sigma", type=float, help="3D Poisson ratio of the material, in (-1, 0.5]")
     group.add_argument("--d", type=float, help="shell thickness")
     group.add_argument("--R", type=float, help="shell radius (with --E --sigma --d)")
+    _add_convention_option(group)
+
+
+def _add_convention_option(parser, default=None) -> None:
+    from .params import CONVENTION_HELP, ENERGY_CONVENTIONS
+
+    parser.add_argument("--energy-convention", choices=list(ENERGY_CONVENTIONS),
+                        default=default, metavar="{" + ",".join(ENERGY_CONVENTIONS) + "}",
+                        help=CONVENTION_HELP)
 
 
 def _params_from_args(args, fallback=None):
-    from .params import ShellParameters
+    from .params import DEFAULT_CONVENTION, ShellParameters
     from .run import MAIN_JOB_GAMMA
 
     material = [args.E, args.sigma, args.d, args.R]
+    convention = getattr(args, "energy_convention", None) or DEFAULT_CONVENTION
     if any(v is not None for v in material):
         if any(v is None for v in material):
             raise ValueError("a material needs all of --E, --sigma, --d and --R")
         if args.gamma is not None or args.nu is not None:
             raise ValueError("give either --gamma/--nu or the material --E --sigma --d --R, not both")
-        return ShellParameters.from_material(args.E, args.sigma, args.d, args.R)
+        return ShellParameters.from_material(args.E, args.sigma, args.d, args.R,
+                                             energy_convention=convention)
     if fallback is not None and args.gamma is None and args.nu is None:
         return fallback
     default_gamma = fallback.gamma if fallback else MAIN_JOB_GAMMA
     gamma = args.gamma if args.gamma is not None else default_gamma
     nu = args.nu if args.nu is not None else (fallback.nu if fallback else 1.0 / 3.0)
-    return ShellParameters.from_gamma(gamma, nu=nu)
+    return ShellParameters.from_gamma(gamma, nu=nu, energy_convention=convention)
 
 
 def _register_deflate(sub) -> None:
@@ -331,7 +348,8 @@ def _cmd_deflate(args) -> int:
         if args.E is not None:
             params = _params_from_args(args)
         else:
-            params = params_for_mesh(mesh, from_file, args.gamma, args.nu)
+            params = params_for_mesh(mesh, from_file, args.gamma, args.nu,
+                                     energy_convention=args.energy_convention)
     else:
         params = _params_from_args(args)
         if args.icosphere is not None:
@@ -356,10 +374,12 @@ def _cmd_continue(args) -> int:
 
     if args.out is None:
         raise ValueError("--from needs --out: the new run gets its own folder")
-    for name in ("gamma", "nu", "E", "sigma", "d", "R", "vertices", "icosphere", "mesh"):
+    for name in ("gamma", "nu", "E", "sigma", "d", "R", "vertices", "icosphere", "mesh",
+                 "energy_convention"):
         if getattr(args, name) is not None:
-            raise ValueError(f"--{name} cannot be combined with --from: the run continues with "
-                             "the stored mesh and parameters")
+            option = name.replace("_", "-")
+            raise ValueError(f"--{option} cannot be combined with --from: the run continues "
+                             "with the stored mesh and parameters")
     parent = Run.open(args.from_run)
     steps = parent.steps
     if not steps:
@@ -647,6 +667,9 @@ def _register_sweep(sub) -> None:
                              "--temperature")
     parser.add_argument("--bending", metavar="B,..", help="bending models: juelicher, evolver")
     parser.add_argument("--method", metavar="M,..", help="minimizers: newton, alternate, cg, gd")
+    parser.add_argument("--energy-convention", metavar="C,..",
+                        help="energy conventions: helfrich (default), paper, evolver-modulus "
+                             "(see shellbuckle deflate --help)")
     parser.add_argument("--no-c0-cycle", action="store_true",
                         help="no zero-spontaneous-curvature cycle (the paper's potato shapes)")
     parser.add_argument("--workers", metavar="N", help="local worker processes (default: cores)")
@@ -686,8 +709,8 @@ def _register_sweep(sub) -> None:
 
         kinds = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
                  "dv": float, "until": float, "jiggle": float, "temperature": float,
-                 "bending": str, "method": str}
-        given = {name: values(f"--{name}", getattr(args, name), kind)
+                 "bending": str, "method": str, "energy_convention": str}
+        given = {name: values(f"--{name.replace('_', '-')}", getattr(args, name), kind)
                  for name, kind in kinds.items() if getattr(args, name) is not None}
         if args.no_c0_cycle:
             given["c0_cycle"] = False

@@ -115,14 +115,15 @@ class RunFields:
             form_factors = np.stack([(s * s).sum(1), (s * t).sum(1), (t * t).sum(1)], axis=1)
         return cls(X0=X0, faces=mesh.faces, form_factors=np.asarray(form_factors, np.float64),
                    stretching=energy.stretching,
-                   bending=energy.bending, kappa=float(params.kappa), c0=c0)
+                   bending=energy.bending, kappa=float(params.kappa_helfrich), c0=c0)
 
     def mean_curvature(self, X) -> np.ndarray:
         """Vertex mean curvature ``H = (c1 + c2)/2`` of the run's bending discretization, (V,)."""
         return np.asarray(self.bending.mean_curvature(X), dtype=np.float64)
 
     def bending_density(self, X, H=None) -> np.ndarray:
-        """Bending energy per area at each vertex, ``kappa/2 (2 H - c0)^2``, shape (V,)."""
+        """Bending energy per area at each vertex, ``kappa_H/2 (2 H - c0)^2`` (``kappa_H`` the
+        helfrich modulus of the run's energy convention), shape (V,)."""
         H = self.mean_curvature(X) if H is None else H
         return 0.5 * self.kappa * (2.0 * H - self.c0) ** 2
 
@@ -210,7 +211,10 @@ def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path
     record = run.store.record(step)
     title = (f"step {step} of run {Path(run.path).name}: dV/V = {record['dV_over_V']:.6g}, "
              f"gamma = {params.gamma:.6g}, nu = {params.nu:.6g}, c0 = {fields.c0:.6g}")
-    write_evolver(path, mesh, kappa=params.kappa, c0=fields.c0, A=params.A, nu=params.nu,
+    if params.energy_convention != "helfrich":
+        title += (f", energy convention {params.energy_convention} (kappa = {params.kappa:.6g}:"
+                  f" the helfrich modulus below is {params.kappa_helfrich:.6g})")
+    write_evolver(path, mesh, kappa=params.kappa_helfrich, c0=fields.c0, A=params.A, nu=params.nu,
                   form_factors=fields.form_factors, volume=volume, title=title)
     log.info("step %d of %s written to %s", step, run.path, path)
     return path

@@ -20,10 +20,30 @@ sigma <= 1/2 for any isotropic material, nu <= 1/3; a larger nu is accepted (the
 well posed for -1 < nu < 1) but warned about.
 
 Units: ``R = 1`` and ``kappa = 1`` unless given, so ``A = gamma``.
+
+Energy convention (which bending energy ``kappa`` multiplies). The paper's eq. (1) writes
+``1/2 kappa (c - c0)^2`` with ``c0 = 1/R`` on the stress-free sphere, so its ``c`` is a mean
+curvature, while the standard thin-plate energy has ``c = c1 + c2``. Three readings
+(:data:`ENERGY_CONVENTIONS`), all the same model up to the factor ``f`` on ``kappa``:
+
+    helfrich         1/2 kappa (c1 + c2 - c0)^2,  c0 = 2/R    f = 1    (thin plate; default)
+    paper            1/2 kappa (H - H0)^2,        H0 = 1/R    f = 1/4  (eq. (1) read literally)
+    evolver-modulus  kappa (H - H0)^2,            H0 = 1/R    f = 1/2  (Surface Evolver's
+                     star_perp_sq_mean_curvature with modulus kappa, h_zero = 1/R)
+
+with ``H = (c1 + c2)/2``. A shell of parameters (gamma, nu, kappa) under a convention is the
+standard (helfrich) shell with bending modulus ``f kappa`` and the same ``A``: its shapes are
+those of the standard shell at ``gamma_effective = gamma / f`` (4 gamma under ``paper``), and
+its energies are those of that shell in absolute units. ``gamma``, ``kappa``, ``E/kappa`` and
+pressures in ``kappa/R^3`` are always in the units of the ``kappa`` given. The material
+conversions below define ``kappa`` and ``A`` as the paper does; under ``paper`` a shell of
+thickness ``d`` then behaves as the standard shell of thickness ``d/2`` (``d/sqrt(2)`` under
+``evolver-modulus``): :attr:`ShellParameters.d_over_R_effective`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -32,9 +52,53 @@ from decimal import Decimal
 import numpy as np
 
 __all__ = ["ShellParameters", "PhysicalRangeWarning", "d_over_R", "gamma_from_d_over_R",
-           "thickness_factor", "check_caption"]
+           "thickness_factor", "check_caption", "ENERGY_CONVENTIONS", "DEFAULT_CONVENTION",
+           "bending_factor", "check_convention", "convention_formula"]
 
 _REL_TOL = 1e-9  # agreement required between stored derived values and recomputed ones
+
+
+ENERGY_CONVENTIONS = {
+    "helfrich": "1/2 kappa (c1 + c2 - c0)^2, c0 = 2/R (standard thin-plate reading)",
+    "paper": "1/2 kappa (H - H0)^2, H = (c1 + c2)/2, H0 = 1/R (the paper's eq. (1) read "
+             "literally): the helfrich shell with kappa/4, i.e. at 4 gamma",
+    "evolver-modulus": "kappa (H - H0)^2, H0 = 1/R (Surface Evolver's "
+                       "star_perp_sq_mean_curvature with modulus kappa): the helfrich shell "
+                       "with kappa/2, i.e. at 2 gamma",
+}
+"""The energy conventions: name -> the bending energy density that ``kappa`` multiplies."""
+DEFAULT_CONVENTION = "helfrich"
+_FACTORS = {"helfrich": 1.0, "paper": 0.25, "evolver-modulus": 0.5}
+_DENSITIES = {"helfrich": "1/2 kappa (c1 + c2 - c0)^2", "paper": "1/2 kappa (H - H0)^2",
+              "evolver-modulus": "kappa (H - H0)^2"}
+
+
+def convention_formula(convention: str) -> str:
+    """The bending energy density of a convention, e.g. ``"1/2 kappa (H - H0)^2"``."""
+    return _DENSITIES[check_convention(convention)]
+
+
+CONVENTION_HELP = (
+    "which bending energy kappa multiplies: helfrich = 1/2 kappa (c1+c2-c0)^2, c0 = 2/R (the "
+    "standard thin plate; default); paper = 1/2 kappa (H-H0)^2, H0 = 1/R, the paper's eq. (1) "
+    "read literally (the helfrich shell at 4 gamma: a material of thickness d behaves as one "
+    "of thickness d/2); evolver-modulus = kappa (H-H0)^2, Surface Evolver's "
+    "star_perp_sq_mean_curvature with modulus kappa (2 gamma, thickness d/sqrt(2)). gamma = "
+    "A R^2/kappa, E/kappa and pressures in kappa/R^3 are in units of the kappa given")
+"""The energy conventions explained in one paragraph (command-line help)."""
+
+
+def check_convention(name) -> str:
+    """``name`` if it is an energy convention, else ``ValueError`` naming it and the choices."""
+    if not isinstance(name, str) or name not in _FACTORS:
+        raise ValueError(f"energy convention must be one of {', '.join(_FACTORS)}, got {name!r}")
+    return name
+
+
+def bending_factor(convention: str) -> float:
+    """``f`` of an energy convention: its bending energy is the helfrich one with ``f kappa``
+    (1 for helfrich, 1/4 for paper, 1/2 for evolver-modulus)."""
+    return _FACTORS[check_convention(convention)]
 
 
 class PhysicalRangeWarning(UserWarning):
@@ -144,6 +208,11 @@ class ShellParameters:
     ratio), ``d_over_R`` from eq. DefFvK_lambda. Construct with :meth:`from_gamma` or
     :meth:`from_material`; bad values raise ``ValueError`` naming the value and the allowed
     range; nu > 1/3 warns with :class:`PhysicalRangeWarning`.
+
+    ``energy_convention`` (module docstring): which bending energy ``kappa`` multiplies,
+    ``"helfrich"`` (default), ``"paper"`` or ``"evolver-modulus"``. The energy terms use
+    :attr:`kappa_helfrich`; :attr:`gamma_effective` is the gamma of the equivalent standard
+    shell (:meth:`helfrich_equivalent`).
     """
 
     gamma: float
@@ -152,8 +221,10 @@ class ShellParameters:
     R: float = 1.0
     E: float | None = None
     d: float | None = None
+    energy_convention: str = DEFAULT_CONVENTION
 
     def __post_init__(self):
+        check_convention(self.energy_convention)
         for name in ("gamma", "nu", "kappa", "R"):
             object.__setattr__(self, name, _require_finite(name, getattr(self, name)))
         for name in ("E", "d"):
@@ -195,19 +266,24 @@ class ShellParameters:
     # -- constructors ---------------------------------------------------------------------
     @classmethod
     def from_gamma(cls, gamma: float, nu: float = 1.0 / 3.0, kappa: float = 1.0,
-                   R: float = 1.0) -> ShellParameters:
+                   R: float = 1.0, energy_convention: str = DEFAULT_CONVENTION
+                   ) -> ShellParameters:
         """Parameters from the Foppl-von Karman number; ``A = gamma kappa / R^2``."""
-        return cls(gamma=gamma, nu=nu, kappa=kappa, R=R)
+        return cls(gamma=gamma, nu=nu, kappa=kappa, R=R, energy_convention=energy_convention)
 
     @classmethod
-    def from_material(cls, E: float, sigma: float, d: float, R: float) -> ShellParameters:
+    def from_material(cls, E: float, sigma: float, d: float, R: float,
+                      energy_convention: str = DEFAULT_CONVENTION) -> ShellParameters:
         """Parameters of a shell of thickness ``d`` and radius ``R`` cut from an isotropic
         material (Young modulus ``E``, Poisson ratio ``sigma`` in (-1, 1/2]).
 
         kappa = E d^3/(12(1 - sigma^2)), A = (1 + 2 sigma)/(1 + sigma)^2 E d,
         nu = sigma/(1 + sigma), gamma = A R^2/kappa = 12(1 - 2 nu^2/(1 - nu))(R/d)^2.
         sigma must also exceed -1/2 for A > 0 (equivalently nu > -1).
+        ``kappa`` multiplies the bending energy of ``energy_convention``: under ``paper`` the
+        shell behaves as the standard one of thickness ``d/2`` (:attr:`d_over_R_effective`).
         """
+        check_convention(energy_convention)
         E, sigma = _require_finite("E", E), _require_finite("sigma", sigma)
         d, R = _require_finite("d", d), _require_finite("R", R)
         if not -1.0 < sigma <= 0.5:
@@ -225,13 +301,67 @@ class ShellParameters:
         kappa = E * d ** 3 / (12.0 * (1.0 - sigma ** 2))
         A = (1.0 + 2.0 * sigma) / (1.0 + sigma) ** 2 * E * d
         nu = sigma / (1.0 + sigma)
-        return cls(gamma=A * R ** 2 / kappa, nu=nu, kappa=kappa, R=R, E=E, d=d)
+        return cls(gamma=A * R ** 2 / kappa, nu=nu, kappa=kappa, R=R, E=E, d=d,
+                   energy_convention=energy_convention)
+
+    def with_gamma(self, gamma: float) -> ShellParameters:
+        """The same shell (nu, kappa, R, energy convention) at another gamma (another A); a
+        material's E and d are dropped unless gamma is unchanged."""
+        if gamma == self.gamma:
+            return self
+        return ShellParameters(gamma=gamma, nu=self.nu, kappa=self.kappa, R=self.R,
+                               energy_convention=self.energy_convention)
+
+    def with_convention(self, energy_convention: str) -> ShellParameters:
+        """The same numbers (gamma, nu, kappa, R; E and d) read under another convention."""
+        return dataclasses.replace(self, energy_convention=check_convention(energy_convention))
+
+    def helfrich_equivalent(self) -> ShellParameters:
+        """The standard (helfrich) shell with the same energy: bending modulus
+        :attr:`kappa_helfrich`, the same ``A``, ``nu`` and ``R``, ``gamma_effective``. Itself
+        under helfrich; a material's E and d are dropped otherwise."""
+        if self.energy_convention == DEFAULT_CONVENTION:
+            return self
+        return ShellParameters(gamma=self.gamma_effective, nu=self.nu, kappa=self.kappa_helfrich,
+                               R=self.R)
 
     # -- derived quantities ---------------------------------------------------------------
     @property
     def A(self) -> float:
         """2D Young modulus ``gamma kappa / R^2`` (energy / length^2)."""
         return self.gamma * self.kappa / self.R ** 2
+
+    @property
+    def bending_factor(self) -> float:
+        """``f``: the bending energy is the helfrich one with ``f kappa`` (module docstring)."""
+        return bending_factor(self.energy_convention)
+
+    @property
+    def kappa_helfrich(self) -> float:
+        """Bending modulus of the energy written ``1/2 kappa_H (c1 + c2 - c0)^2``, ``f kappa``:
+        the modulus the energy terms use."""
+        return self.bending_factor * self.kappa
+
+    @property
+    def gamma_effective(self) -> float:
+        """``A R^2 / kappa_helfrich = gamma / f``: the gamma of the standard shell with these
+        shapes (4 gamma under ``paper``, 2 gamma under ``evolver-modulus``)."""
+        return self.gamma / self.bending_factor
+
+    @property
+    def d_over_R_effective(self) -> float:
+        """Relative thickness of the standard thin-plate shell that behaves as this one,
+        ``d_over_R(gamma_effective, nu)``: :attr:`d_over_R` times ``sqrt(f)``."""
+        return d_over_R(self.gamma_effective, self.nu)
+
+    @property
+    def convention_note(self) -> str:
+        """``""`` under helfrich, else ``", energy convention paper (gamma_eff = 11664)"``:
+        to append to a title or a line that names gamma."""
+        if self.energy_convention == DEFAULT_CONVENTION:
+            return ""
+        return (f", energy convention {self.energy_convention} "
+                f"(gamma_eff = {self.gamma_effective:.6g})")
 
     @property
     def sigma(self) -> float:
@@ -256,7 +386,8 @@ class ShellParameters:
         out = {"gamma": self.gamma, "nu": self.nu, "kappa": self.kappa, "R": self.R}
         if self.is_material:
             out.update(E=self.E, d=self.d)
-        out.update(A=self.A, sigma=self.sigma)
+        out["energy_convention"] = self.energy_convention
+        out.update(A=self.A, sigma=self.sigma, gamma_effective=self.gamma_effective)
         if self.nu < 0.5:
             out["d_over_R"] = self.d_over_R
         return out
@@ -264,9 +395,10 @@ class ShellParameters:
     @classmethod
     def from_dict(cls, data: dict) -> ShellParameters:
         """Inverse of :meth:`to_dict`. Derived entries, when present, must agree with the
-        defining ones (relative 1e-9); unknown keys are refused."""
-        defining = {"gamma", "nu", "kappa", "R", "E", "d"}
-        derived = {"A", "sigma", "d_over_R"}
+        defining ones (relative 1e-9); unknown keys are refused. Without
+        ``energy_convention`` (files written before it existed) the convention is helfrich."""
+        defining = {"gamma", "nu", "kappa", "R", "E", "d", "energy_convention"}
+        derived = {"A", "sigma", "d_over_R", "gamma_effective"}
         unknown = set(data) - defining - derived
         if unknown:
             raise ValueError(f"unknown shell parameter key(s) {sorted(unknown)}; "
@@ -290,6 +422,11 @@ class ShellParameters:
         lines = [f"gamma = {self.gamma:.6g}, nu = {self.nu:.4g} (3D sigma = {self.sigma:.4g}), "
                  f"{thickness}",
                  f"kappa = {self.kappa:.6g}, A = {self.A:.6g}, R = {self.R:.6g}"]
+        if self.energy_convention != DEFAULT_CONVENTION:
+            same = (f", d/R = {self.d_over_R_effective:.4g}" if self.nu < 0.5 else "")
+            lines.append(f"energy convention {self.energy_convention}: "
+                         f"{convention_formula(self.energy_convention)}; the "
+                         f"standard shell at gamma = {self.gamma_effective:.6g}{same}")
         if self.is_material:
             lines.append(f"material: E = {self.E:.6g}, sigma = {self.sigma:.4g}, "
                          f"d = {self.d:.6g}")

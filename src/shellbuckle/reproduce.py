@@ -89,7 +89,9 @@ class Study:
     default 3), ``vertices`` (randomized mesh sizes; several make a mesh-convergence study;
     default 3594), ``nu`` (1/3), ``dv`` (volume step, 0.019), ``until`` (last target dV/V,
     0.95: runs stop at self-contact before), ``special`` (the Fig. 3 and Fig. 11 runs),
-    ``path_increments`` (gamma increments of the Fig. 11 path, 8), ``path_from_gamma`` (743).
+    ``path_increments`` (gamma increments of the Fig. 11 path, 8), ``path_from_gamma`` (743),
+    ``energy_convention`` (which bending energy kappa multiplies, :mod:`shellbuckle.params`:
+    ``helfrich``, the default, ``paper`` or ``evolver-modulus``; every run of the study).
     """
 
     gammas: tuple = PAPER_GAMMAS
@@ -101,8 +103,12 @@ class Study:
     special: bool = True
     path_increments: int = 8
     path_from_gamma: float = SOLEIL_FROM_GAMMA
+    energy_convention: str = "helfrich"
 
     def __post_init__(self):
+        from .params import check_convention
+
+        check_convention(self.energy_convention)
         gammas = tuple(float(g) for g in _tuple(self.gammas))
         if not gammas or not all(math.isfinite(g) and g > 0 for g in gammas):
             raise ValueError(f"gammas must be numbers > 0, got {list(gammas)!r}")
@@ -139,7 +145,8 @@ class Study:
         from .sweep import SweepSpec
 
         return SweepSpec(gamma=self.gammas, nu=self.nu, seeds=tuple(range(self.seeds)),
-                         vertices=self.vertices, dv=self.dv, until=self.until)
+                         vertices=self.vertices, dv=self.dv, until=self.until,
+                         energy_convention=(self.energy_convention,))
 
     def steps_to(self, dV_over_V: float) -> int:
         """Volume steps to the stored dV/V nearest to ``dV_over_V``, at most to ``until``."""
@@ -171,7 +178,8 @@ def _special_specs(study: Study, main) -> tuple[list, dict]:
 
     v = study.vertices[0]
     specs, where = [], {}
-    common = dict(nu=study.nu, seeds=(0,), vertices=(v,), dv=study.dv)
+    common = dict(nu=study.nu, seeds=(0,), vertices=(v,), dv=study.dv,
+                  energy_convention=(study.energy_convention,))
 
     def need(role, gamma, steps, c0_cycle=True, **protocol):
         name = _point_in(main, gamma=gamma, seed=0, n_vertices=v, c0_cycle=c0_cycle) \

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .mesh.mesh import Mesh
-from .params import ShellParameters
+from .params import DEFAULT_CONVENTION, ShellParameters, bending_factor
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
@@ -75,7 +75,7 @@ class Run:
         gamma = self.store.record(self._step(k)).get("gamma")
         if gamma is None or gamma == params.gamma:
             return params
-        return ShellParameters.from_gamma(gamma, nu=params.nu, kappa=params.kappa, R=params.R)
+        return params.with_gamma(gamma)
 
     def c0_at(self, k: int = -1) -> float:
         """The spontaneous curvature (c = c1 + c2) in force at step ``k``."""
@@ -472,10 +472,14 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
     return evf.mesh, found
 
 
-def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None) -> ShellParameters:
+def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None,
+                    energy_convention: str | None = None) -> ShellParameters:
     """Shell parameters for a mesh read from a file: options override the file's moduli.
 
     ``R`` is the radius of the sphere with the mesh's initial volume; ``gamma = A R^2/kappa``.
+    The file's bending energy is kept under any ``energy_convention`` (default helfrich): its
+    helfrich modulus (twice Surface Evolver's modulus) is ``f kappa``, so ``kappa`` is that
+    modulus over ``f`` (under evolver-modulus, the file's own modulus).
     """
     from .energies.volume import Volume
 
@@ -483,8 +487,10 @@ def params_for_mesh(mesh: Mesh, from_file: dict, gamma=None, nu=None) -> ShellPa
     if not V > 0:
         raise ValueError(f"the mesh encloses a non-positive volume {V!r}: faces must point outward")
     R = (3.0 * V / (4.0 * np.pi)) ** (1.0 / 3.0)
-    kappa = from_file.get("kappa", 1.0)
+    convention = energy_convention or DEFAULT_CONVENTION
+    kappa = from_file["kappa"] / bending_factor(convention) if "kappa" in from_file else 1.0
     if gamma is None:
         gamma = from_file["A"] * R ** 2 / kappa if "A" in from_file else MAIN_JOB_GAMMA
     nu = nu if nu is not None else from_file.get("nu", 1.0 / 3.0)
-    return ShellParameters.from_gamma(gamma, nu=nu, kappa=kappa, R=R)
+    return ShellParameters.from_gamma(gamma, nu=nu, kappa=kappa, R=R,
+                                      energy_convention=convention)

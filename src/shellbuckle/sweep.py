@@ -64,7 +64,7 @@ PAPER_VERTICES = 3594
 LOCK_POLL_S = 2.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
-         "bending", "method")
+         "bending", "method", "energy_convention")
 
 
 def _bending_kinds() -> tuple:
@@ -84,6 +84,12 @@ def _values(name: str, value) -> tuple:
     if not items:
         raise ValueError(f"{name} must hold at least one value, got an empty list")
     return tuple(dict.fromkeys(items))
+
+
+def _convention(value) -> str:
+    from .params import check_convention
+
+    return check_convention(value)
 
 
 def _real(name: str, v, low=-math.inf, high=math.inf, *, low_open=True, high_open=True,
@@ -128,7 +134,9 @@ class SweepSpec:
       (booleans; default True), ``temperature`` (jiggle on Surface Evolver's scale, in
       [0, 1]; default 0.05), ``jiggle`` (jiggle as a fraction of the mean edge length, in
       [0, 0.5], replacing the temperature for those runs; default none), ``bending``
-      (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``).
+      (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``);
+    - ``energy_convention``: which bending energy kappa multiplies (``helfrich``, the default,
+      ``paper`` or ``evolver-modulus``; :mod:`shellbuckle.params`).
 
     ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
     with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
@@ -149,6 +157,7 @@ class SweepSpec:
     temperature: tuple = (DEFAULT_TEMPERATURE,)
     bending: tuple = ("juelicher",)
     method: tuple = ("newton",)
+    energy_convention: tuple = ("helfrich",)
     tol: float = 1e-9
     max_iter: int = DEFAULT_MAX_ITER
     stop_at_contact: bool = True
@@ -190,6 +199,8 @@ class SweepSpec:
                 if v not in allowed:
                     raise ValueError(f"{name} {v!r} is not known; allowed: {', '.join(allowed)}")
             put(name, values)
+        put("energy_convention", tuple(_convention(c) for c in
+                                       _values("energy_convention", self.energy_convention)))
         put("tol", _real("tol", self.tol, 0.0, 1e-2, allowed="0 < tol < 1e-2"))
         put("max_iter", _integer("max_iter", self.max_iter, 1, "integers >= 1"))
         if not isinstance(self.stop_at_contact, bool):
@@ -253,19 +264,21 @@ class SweepSpec:
 
     def points(self) -> list[dict]:
         """Every run of the grid: a dict of its parameters with its ``name`` (see
-        :func:`run_name`), in grid order (gamma slowest, method fastest)."""
+        :func:`run_name`), in grid order (energy convention slowest, then gamma; method
+        fastest)."""
         out, names = [], {}
         # a jiggle amplitude replaces the temperature; None in ``jiggle`` means "by temperature"
         jiggles = [(None, t) for t in self.temperature if None in self.jiggle] + \
                   [(j, None) for j in self.jiggle if j is not None]
-        for gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp), bend, method in \
-                itertools.product(self.gamma, self.nu, self.meshes(), self.seeds, self.dv,
-                                  self.until, self.c0_cycle, jiggles, self.bending, self.method):
+        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp), bend, method \
+                in itertools.product(self.energy_convention, self.gamma, self.nu, self.meshes(),
+                                     self.seeds, self.dv, self.until, self.c0_cycle, jiggles,
+                                     self.bending, self.method):
             point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
                      "n_vertices": n if mesh == "random" else 10 * n * n + 2,
                      "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
                      "c0_cycle": cycle, "jiggle": jig, "temperature": temp, "bending": bend,
-                     "method": method,
+                     "method": method, "energy_convention": convention,
                      "tol": self.tol, "max_iter": self.max_iter,
                      "stop_at_contact": self.stop_at_contact}
             name = run_name(point)
@@ -285,7 +298,7 @@ def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
     ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>``, ``_<bending>``, ``_<method>``,
-    ``_it<max_iter>``), e.g. ``g2333_nu0.333_v3594_s0``
+    ``_it<max_iter>``, ``_<energy convention>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
     mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
@@ -306,6 +319,8 @@ def run_name(point: dict) -> str:
         name += f"_{point['method']}"
     if point.get("max_iter", DEFAULT_MAX_ITER) != DEFAULT_MAX_ITER:
         name += f"_it{point['max_iter']}"
+    if point.get("energy_convention", "helfrich") != "helfrich":
+        name += f"_{point['energy_convention']}"
     return name
 
 
@@ -341,7 +356,9 @@ def _build(point: dict):
     from .mesh import icosphere, random_sphere
     from .params import ShellParameters
 
-    params = ShellParameters.from_gamma(point["gamma"], nu=point["nu"])
+    params = ShellParameters.from_gamma(point["gamma"], nu=point["nu"],
+                                        energy_convention=point.get("energy_convention",
+                                                                    "helfrich"))
     if point["mesh"] == "random":
         mesh = random_sphere(point["n_vertices"], seed=point["seed"])
     else:

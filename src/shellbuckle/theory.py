@@ -15,7 +15,15 @@ PowerLawBuckling2); the classical (Zoelly) buckling pressure of a sphere is
 ``p_c = 4 sqrt(kappa A) / R^2``.
 
 Units: energies in the units of ``kappa`` (``kappa = 1``, ``R = 1`` by default, then
-``A = gamma``), pressures in energy / length^3. Functions are vectorized over ``dV_over_V`` or
+``A = gamma``), pressures in energy / length^3.
+
+Energy convention: the formulas are those of the standard (helfrich) thin-plate energy
+``1/2 kappa (c1 + c2 - c0)^2``. Parameters under another convention
+(:mod:`shellbuckle.params`) are evaluated as their standard equivalent
+(:meth:`~shellbuckle.params.ShellParameters.helfrich_equivalent`: bending modulus ``f kappa``,
+the same ``A``, gamma / f), so every curve is the theory of the model that is simulated, in
+absolute units: divide by the ``kappa`` given to get E/kappa. Under ``paper`` every function
+equals the helfrich one at 4 gamma, with energies divided by 4 in units of kappa. Functions are vectorized over ``dV_over_V`` or
 ``alpha`` (any shape; a float for scalar input) and take a :class:`ShellParameters`.
 Pressure sign: ``p = -dU/dV`` is the outside-minus-inside pressure difference holding the
 shell at volume ``V``; it is positive on deflation.
@@ -173,6 +181,11 @@ def _delta(params: ShellParameters) -> float:
     return params.d_over_R  # ValueError unless -1 < nu < 1/2
 
 
+def _standard(params: ShellParameters) -> ShellParameters:
+    """The helfrich shell with the energy of ``params`` (module docstring)."""
+    return params.helfrich_equivalent()
+
+
 def U_axisym(alpha, params: ShellParameters):
     """Energy of the capsule, an inverted cap of half-angle ``alpha`` (paper eq. Ucapsule):
 
@@ -187,6 +200,7 @@ def U_axisym(alpha, params: ShellParameters):
     ``U_sphere`` a second time near dV/V ~ 0.9; that crossing is an artefact of the formula.
     """
     a = _checked("alpha", alpha, 0.0, np.pi / 2.0, hi_open=True)
+    params = _standard(params)
     delta = _delta(params)
     root = math.sqrt(delta)
     sin_a, cos_a = np.sin(a), np.cos(a)
@@ -212,6 +226,7 @@ def U_axisym_small_alpha(alpha, params: ShellParameters):
     ``a < (d/R)^(1/2)``; the paper's thin-shell form :func:`U_axisym_asymptotic` drops it.
     """
     a = _checked("alpha", alpha, 0.0, np.pi / 2.0, hi_open=True)
+    params = _standard(params)
     delta = _delta(params)
     return _out(np.pi * params.kappa / math.sqrt(delta) * (a ** 3 + delta * a))
 
@@ -228,7 +243,7 @@ def U_axisym_asymptotic(alpha, params: ShellParameters):
     ``a`` small, e.g. along ``a = (d/R)^(1/4)``.
     """
     a = _checked("alpha", alpha, 0.0, np.pi / 2.0, hi_open=True)
-    p = params
+    p = _standard(params)
     factor = thickness_factor(p.nu)
     if not factor > 0:
         _delta(p)  # raises: nu outside (-1, 1/2)
@@ -247,7 +262,7 @@ def U_axisym_asymptotic_of_dV(dV_over_V, params: ShellParameters):
     form: ``d/R << (dV/V)^(1/2) << 1``. ``dV_over_V in [0, 1)``.
     """
     x = _checked("dV_over_V", dV_over_V, 0.0, 1.0, hi_open=True)
-    p = params
+    p = _standard(params)
     factor = thickness_factor(p.nu)
     if not factor > 0:
         _delta(p)
@@ -264,9 +279,9 @@ def crossing_asymptotic(params: ShellParameters) -> float:
 
     (= 2^(3/5) (3/2)^(1/5) gamma^(-3/5) ~= 1.644 gamma^(-3/5) at nu = 1/3). The exact crossing
     (:func:`crossing`) approaches it as gamma -> inf, with a relative correction ~ d/R / a^2,
-    which decays only like gamma^(-1/5).
+    which decays only like gamma^(-1/5). ``gamma`` is the effective one of the convention.
     """
-    p = params
+    p = _standard(params)
     factor = thickness_factor(p.nu)
     if not factor > 0:
         _delta(p)
@@ -289,7 +304,7 @@ def crossing(params: ShellParameters, sphere: str = "small_strain") -> float:
     if sphere not in energies:
         raise ValueError(f"sphere must be one of {sorted(energies)}, got {sphere!r}")
     u_sphere = energies[sphere]
-    _delta(params)
+    _delta(_standard(params))
 
     def gap(t):
         x = np.exp(t)
@@ -329,8 +344,9 @@ class ClassicalThreshold:
 
 
 def classical_threshold(params: ShellParameters) -> ClassicalThreshold:
-    """Classical buckling pressure and the dV/V at which the shrunk sphere reaches it."""
-    p = params
+    """Classical buckling pressure and the dV/V at which the shrunk sphere reaches it (with the
+    bending modulus and gamma of the standard equivalent of the convention)."""
+    p = _standard(params)
     p_c = 4.0 * math.sqrt(p.kappa * p.A) / p.R ** 2
     linear = 6.0 * (1.0 - p.nu) / math.sqrt(p.gamma)
     # p_exact increases from 0 (x = 0) to +inf (x -> 1); bracket [0, 1 - 1e-15]
@@ -343,6 +359,8 @@ def summary(params: ShellParameters) -> dict:
     """The theory's numbers for ``params`` as a plain dictionary.
 
     Keys: ``gamma``, ``nu``, ``kappa``, ``A``, ``R``, ``d_over_R`` (None if nu >= 1/2),
+    ``energy_convention``, ``gamma_effective`` and ``d_over_R_effective`` (the standard shell
+    with the same energy; equal to gamma and d_over_R under helfrich),
     ``crossing_dV_over_V`` (eq. Usphere = eq. Ucapsule), ``crossing_dV_over_V_exact_sphere``
     (Green-Lagrange sphere), ``crossing_asymptotic_dV_over_V`` (power law), each None when
     undefined (no crossing, or nu >= 1/2), ``classical_pressure`` (p_c),
@@ -350,10 +368,12 @@ def summary(params: ShellParameters) -> dict:
     """
     p = params
     out = {"gamma": p.gamma, "nu": p.nu, "kappa": p.kappa, "A": p.A, "R": p.R,
-           "d_over_R": None, "crossing_dV_over_V": None,
+           "energy_convention": p.energy_convention, "gamma_effective": p.gamma_effective,
+           "d_over_R": None, "d_over_R_effective": None, "crossing_dV_over_V": None,
            "crossing_dV_over_V_exact_sphere": None, "crossing_asymptotic_dV_over_V": None}
     if p.nu < 0.5:
         out["d_over_R"] = p.d_over_R
+        out["d_over_R_effective"] = p.d_over_R_effective
         out["crossing_asymptotic_dV_over_V"] = crossing_asymptotic(p)
         for key, sphere in (("crossing_dV_over_V", "small_strain"),
                             ("crossing_dV_over_V_exact_sphere", "exact")):

@@ -29,7 +29,8 @@ from .fits import W_WINDOW, fit_power_law, wrinkle_average
 log = logging.getLogger(__name__)
 
 #: Columns of :func:`collect_runs`, in order.
-COLUMNS = ("path", "name", "parent", "gamma", "nu", "seed", "n_vertices", "mesh", "jiggle",
+COLUMNS = ("path", "name", "parent", "gamma", "nu", "energy_convention", "seed", "n_vertices",
+           "mesh", "jiggle",
            "temperature", "c0_cycle", "method", "bending", "control", "dv", "until", "status",
            "message", "n_steps", "stop_dV_over_V", "stop_reason", "primary_dV_over_V",
            "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
@@ -164,7 +165,9 @@ def collect_run(folder, *, store_analysis: bool = False) -> tuple[dict, pd.DataF
     row = dict.fromkeys(COLUMNS)
     row.update(path=str(Path(folder).resolve()), name=Path(folder).resolve().name,
                parent=None if not parent else str(parent.get("path", parent)),
-               gamma=params.get("gamma"), nu=params.get("nu"), seed=protocol.get("seed"),
+               gamma=params.get("gamma"), nu=params.get("nu"),
+               energy_convention=params.get("energy_convention", "helfrich"),
+               seed=protocol.get("seed"),
                n_vertices=run.store.n_vertices, mesh=mesh_kind(run.faces, run.store.n_vertices),
                jiggle=protocol.get("jiggle"), temperature=protocol.get("temperature"),
                c0_cycle=protocol.get("c0_cycle"), method=protocol.get("method"),
@@ -273,7 +276,23 @@ def deflation_runs(df: pd.DataFrame) -> pd.DataFrame:
     return df[keep.to_numpy()]
 
 
+def convention_of(df: pd.DataFrame) -> str:
+    """The most common energy convention of the runs (helfrich without runs or column)."""
+    if "energy_convention" not in df or not df["energy_convention"].notna().any():
+        return "helfrich"
+    return str(df["energy_convention"].fillna("helfrich").value_counts().idxmax())
+
+
 def _one_nu(df: pd.DataFrame, nu) -> pd.DataFrame:
+    """The runs at one nu and one energy convention (the most common ones, with a warning when
+    several are present): a fit across conventions would mix different shells."""
+    if "energy_convention" in df and len(df):
+        conventions = df["energy_convention"].fillna("helfrich")
+        if conventions.nunique() > 1:
+            chosen = convention_of(df)
+            log.warning("runs under several energy conventions (%s): using those under %s only",
+                        ", ".join(sorted(conventions.unique())), chosen)
+            df = df[(conventions == chosen).to_numpy()]
     if nu is not None:
         return df[np.isclose(df["nu"].to_numpy(float), float(nu), rtol=1e-6)]
     values = df["nu"].round(6)

@@ -9,6 +9,8 @@ import sys
 
 
 def register(sub) -> None:
+    from ..params import ENERGY_CONVENTIONS
+
     parser = sub.add_parser(
         "reproduce-paper", help="run the paper's study (sweep on Dask), write figures and report",
         description="Run Quilliet et al. (2008)'s simulations as a resumable Dask sweep: every "
@@ -35,6 +37,10 @@ def register(sub) -> None:
     parser.add_argument("--dv", type=float, help="volume step / V0 (default 0.019)")
     parser.add_argument("--path-increments", type=int, metavar="N",
                         help="gamma increments of the Fig. 11 path (default 8)")
+    parser.add_argument("--energy-convention", choices=list(ENERGY_CONVENTIONS),
+                        metavar="{" + ",".join(ENERGY_CONVENTIONS) + "}",
+                        help="which bending energy kappa multiplies in every run (default "
+                             "helfrich; see shellbuckle deflate --help)")
     parser.add_argument("--no-special", action="store_true",
                         help="only the sweep: no Fig. 3 and Fig. 11 runs")
     parser.add_argument("--formats", default="png,pdf", help="figure formats (default png,pdf)")
@@ -66,6 +72,8 @@ def _cmd(args) -> int:
         given["vertices"] = tuple(args.vertices)
     if args.no_special:
         given["special"] = False
+    if args.energy_convention is not None:
+        given["energy_convention"] = args.energy_convention
     study = Study.quick(**given) if args.quick else Study(**given)
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be >= 1, got {args.workers}")

@@ -53,7 +53,9 @@ class ShellEnergy:
 
         The stretching rest state is ``form_factors (F, 3)`` (Surface Evolver's rest metrics)
         if given, else the shape of ``reference`` (positions, default ``mesh.X``: the
-        stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere).
+        stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere). The
+        bending term has the modulus ``params.kappa_helfrich`` of the parameters' energy
+        convention (``params.kappa`` under the default helfrich convention).
         """
         t = mesh.topology
         c0 = 2.0 / params.R if c0 is None else float(c0)
@@ -63,7 +65,7 @@ class ShellEnergy:
         else:
             X0 = mesh.X if reference is None else np.asarray(reference, float)
             stretching = Stretching.from_reference(X0, t.faces, t.n_vertices, params.A, params.nu)
-        return cls(stretching, make_bending(bending, mesh, params.kappa, c0))
+        return cls(stretching, make_bending(bending, mesh, params.kappa_helfrich, c0))
 
     @property
     def c0(self) -> float:

@@ -43,6 +43,10 @@ _MARKERS = {"primary": ("s", "k", "primary buckling"),
             "wrinkles": ("v", "0.55", "wrinkles")}
 
 
+#: gamma_effective / gamma of each energy convention, as printed in a formula
+_GAMMA_FACTOR = {"helfrich": "", "paper": "4", "evolver-modulus": "2"}
+
+
 def _pyplot():
     import matplotlib
 
@@ -87,6 +91,7 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
     runs = collect_mod.deflation_runs(df)
     fits = collect_mod.threshold_fits(df) if fits is None else fits
     nu = _nu(runs if len(runs) else df)
+    convention = collect_mod.convention_of(runs if len(runs) else df)
     with plt.rc_context(STYLE):
         fig, ax = plt.subplots(figsize=(9.6, 4.8), constrained_layout=True)
         gammas = runs["gamma"].to_numpy(float)
@@ -126,21 +131,25 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
         crossing = []
         for g in grid:
             try:
-                crossing.append(theory.crossing(ShellParameters.from_gamma(g, nu=nu)))
+                crossing.append(theory.crossing(ShellParameters.from_gamma(
+                    g, nu=nu, energy_convention=convention)))
             except ValueError:
                 crossing.append(math.nan)
         ax.plot(grid, crossing, ":", color="0.3", lw=1.2,
                 label=r"theory: $U_{sphere} = U_{axisym}$", gid="theory_crossing")
-        classical = [theory.classical_threshold(ShellParameters.from_gamma(g, nu=nu)).dV_over_V
-                     for g in grid]
+        classical = [theory.classical_threshold(ShellParameters.from_gamma(
+            g, nu=nu, energy_convention=convention)).dV_over_V for g in grid]
         ax.plot(grid, classical, "-.", color="0.6", lw=1.0,
-                label=r"classical: $6(1-\nu)/\sqrt{\gamma}$", gid="classical")
+                label=r"classical: $6(1-\nu)/\sqrt{%s\gamma}$" % _GAMMA_FACTOR[convention],
+                gid="classical")
         ax.axhline(1.0, color="0.8", lw=0.8)
         values = runs[[f"{n}_dV_over_V" for n in _MARKERS]].to_numpy(float)
         bottom = min(0.01, np.nanmin(values) / 1.5) if np.isfinite(values).any() else 0.01
         ax.set(xscale="log", yscale="log",
                xlabel=r"Föppl–von Kármán number $\gamma = AR^2/\kappa$", ylabel=r"threshold $\Delta V/V$", ylim=(bottom, 1.5))
-        ax.set_title(rf"Buckling thresholds vs $\gamma$ ($\nu$ = {nu:.3g}; paper Fig. 10)")
+        reading = "" if convention == "helfrich" else f", energy convention {convention}"
+        ax.set_title(rf"Buckling thresholds vs $\gamma$ ($\nu$ = {nu:.3g}{reading}; "
+                     "paper Fig. 10)")
         ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False, ncol=1)
     if path is not None:
         fig.savefig(path, dpi=DPI)

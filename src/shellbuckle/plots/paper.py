@@ -396,7 +396,9 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     ax.legend(handles=handles, loc="upper left", fontsize=6, frameon=True, framealpha=0.85,
               edgecolor="none", handlelength=2.2)
     if single:
-        ax.set_title(f"$\\gamma$ = {gammas[0]:g}, $\\nu$ = {runs[0].params.nu:.3g}", fontsize=8)
+        note = runs[0].params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")
+        ax.set_title(f"$\\gamma$ = {gammas[0]:g}, $\\nu$ = {runs[0].params.nu:.3g}{note}",
+                     fontsize=8)
     return fig
 
 

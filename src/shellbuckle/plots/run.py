@@ -99,7 +99,9 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
     p_scale = threshold.pressure
     ax_p.plot(grid, theory.pressure_sphere_exact(grid, params) / p_scale, "--", color="0.4",
               label="uniformly shrunk sphere")
-    ax_p.axhline(1.0, color="C3", lw=0.8, label=r"classical $p_c=4\sqrt{\kappa A}/R^2$")
+    ax_p.axhline(1.0, color="C3", lw=0.8,
+                 label=r"classical $p_c=4\sqrt{\kappa A}/R^2$" if params.bending_factor == 1
+                 else rf"classical $p_c=4\sqrt{{{params.bending_factor:g}\kappa A}}/R^2$")
     ax_p.plot(x, np.asarray(table["pressure"], float) / p_scale, "o-", ms=3, color="C0",
               label="simulation")
     ax_p.set(xlabel=r"$\Delta V/V$", ylabel=r"pressure $p/p_c$", xlim=(0, xmax))
@@ -118,7 +120,8 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
     last = table.iloc[-1]
     ax_s.set_title(rf"step {int(last['step'])}, $\Delta V/V$ = {float(last['dV_over_V']):.3f}",
                    fontsize=9)
-    fig.suptitle(title or rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}", fontsize=11)
+    fig.suptitle(title or rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
+                 + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"), fontsize=11)
     if path is not None:
         fig.savefig(path, dpi=150)
         plt.close(fig)

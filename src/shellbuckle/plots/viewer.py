@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..params import convention_formula
+
 log = logging.getLogger(__name__)
 
 __all__ = ["COLORS", "html_page", "write_html", "show"]
@@ -161,12 +163,17 @@ def _payload(run, color: str) -> dict:
     title = f"shellbuckle run {Path(run.path).name}"
     subtitle = (f"γ = {params.gamma:.6g}, ν = {params.nu:.4g}, κ = {params.kappa:.4g}, "
                 f"R = {params.R:.4g}, c0 = {fields.c0:.4g} (c = c1 + c2), "
+                f"energy convention {params.energy_convention} "
+                f"({convention_formula(params.energy_convention)}"
+                + (f", γ_eff = {params.gamma_effective:.6g}), "
+                   if params.energy_convention != "helfrich" else "), ") +
                 f"bending {protocol.bending}, c0 cycle {'on' if protocol.c0_cycle else 'off'}, "
                 f"{V} vertices, {F} faces · status {status}" + (f" ({message})" if message else ""))
     note = ("Colours use one range for all steps (the extreme 2 % of values are clipped). "
             "Curvature: vertex mean curvature H = (c1 + c2)/2 of the run's bending "
             "discretization. Strain: stretching energy per rest area of each triangle. "
-            "Bending: κ/2 (2H − c0)² per area at each vertex.")
+            "Bending: κ_H/2 (2H − c0)² per area at each vertex, κ_H = "
+            f"{params.kappa_helfrich:.4g} (the helfrich modulus of the energy convention).")
     return {
         "title": title, "subtitle": subtitle, "note": note,
         "n_vertices": V, "n_faces": F, "steps": steps, "start": len(steps) - 1,

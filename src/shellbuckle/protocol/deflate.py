@@ -346,7 +346,7 @@ def at_parameter(ctx: Context, value: float) -> Context:
     stretching term, the rest state unchanged) or c0 set to ``value``."""
     if ctx.protocol.control == "gamma":
         old = ctx.params
-        params = ShellParameters.from_gamma(float(value), nu=old.nu, kappa=old.kappa, R=old.R)
+        params = old.with_gamma(float(value))
         stretching = dataclasses.replace(ctx.energy.stretching, A=params.A)
         energy = ShellEnergy(stretching, ctx.energy.bending)
         return dataclasses.replace(ctx, params=params, energy=energy)

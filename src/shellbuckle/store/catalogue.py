@@ -5,7 +5,8 @@ Layout of a sweep folder ``OUT`` (format ``shellbuckle-sweep``, version 1)::
     OUT/sweep.json             the sweep: format + version, every spec run in this folder (in
                                order), and ``runs``: {name: point} with the parameters of each
                                run (gamma, nu, seed, mesh, n_vertices, icosphere, dv, until,
-                               c0_cycle, jiggle, bending, method, tol, stop_at_contact)
+                               c0_cycle, jiggle, bending, method, energy_convention, tol,
+                               stop_at_contact)
     OUT/<name>/                one run folder per point (:mod:`shellbuckle.store.run`), named
                                from its parameters, e.g. ``g2333_nu0.333_v3594_s0``
     OUT/logs/<name>.json       the sweep's attempts at that run: start and end time, wall
@@ -24,7 +25,7 @@ Columns (:data:`COLUMNS`):
 - ``name``, ``path`` (relative to ``OUT``), the parameters (from ``run.json`` where the run
   exists, else from ``sweep.json``): ``gamma``, ``nu``, ``seed``, ``mesh`` (``random`` or
   ``icosphere``), ``n_vertices``, ``icosphere`` (level), ``dv``, ``until``, ``c0_cycle``,
-  ``jiggle``, ``temperature``, ``bending``, ``method``;
+  ``jiggle``, ``temperature``, ``bending``, ``method``, ``energy_convention``;
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
   written or whose worker died; ``message``; ``stop_reason`` (``self-intersection`` or
@@ -78,7 +79,8 @@ PRESSURE_DROP = 0.2
 W_RANGE = (0.53, 0.76)
 
 PARAMETER_COLUMNS = ("gamma", "nu", "seed", "mesh", "n_vertices", "icosphere", "dv", "until",
-                     "c0_cycle", "jiggle", "temperature", "bending", "method")
+                     "c0_cycle", "jiggle", "temperature", "bending", "method",
+                     "energy_convention")
 RESULT_COLUMNS = ("status", "message", "stop_reason", "steps", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "primary_source",
                   "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
@@ -269,7 +271,8 @@ def _parameters(point: dict, meta: dict | None) -> dict:
     row = {k: point.get(k) for k in PARAMETER_COLUMNS}
     if meta is not None:  # the run folder is the truth where it exists
         params, protocol = meta.get("params", {}), meta.get("protocol", {})
-        row.update(gamma=params.get("gamma"), nu=params.get("nu"))
+        row.update(gamma=params.get("gamma"), nu=params.get("nu"),
+                   energy_convention=params.get("energy_convention", "helfrich"))
         for key in ("seed", "c0_cycle", "jiggle", "temperature", "bending", "method"):
             if key in protocol:
                 row[key] = protocol[key]
