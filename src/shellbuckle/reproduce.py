@@ -91,7 +91,10 @@ class Study:
     0.95: runs stop at self-contact before), ``special`` (the Fig. 3 and Fig. 11 runs),
     ``path_increments`` (gamma increments of the Fig. 11 path, 8), ``path_from_gamma`` (743),
     ``energy_convention`` (which bending energy kappa multiplies, :mod:`shellbuckle.params`:
-    ``helfrich``, the default, ``paper`` or ``evolver-modulus``; every run of the study).
+    ``helfrich``, the default, ``paper`` or ``evolver-modulus``; every run of the study),
+    ``special_seeds`` (the special runs of Figs. 3 and 11 and the re-inflation for seeds
+    0..special_seeds-1; default 1, at most ``seeds``: the figures and the report use seed 0,
+    the others give the seed scatter of those numbers in ``reproduction.json``).
     """
 
     gammas: tuple = PAPER_GAMMAS
@@ -104,6 +107,7 @@ class Study:
     path_increments: int = 8
     path_from_gamma: float = SOLEIL_FROM_GAMMA
     energy_convention: str = "helfrich"
+    special_seeds: int = 1
 
     def __post_init__(self):
         from .params import check_convention
@@ -126,6 +130,10 @@ class Study:
                 or self.path_increments < 1:
             raise ValueError(f"path_increments must be an integer >= 1, got "
                              f"{self.path_increments!r}")
+        if isinstance(self.special_seeds, bool) or not isinstance(self.special_seeds, int) \
+                or not 1 <= self.special_seeds <= self.seeds:
+            raise ValueError(f"special_seeds must be an integer in [1, seeds = {self.seeds}], "
+                             f"got {self.special_seeds!r}")
         if not self.path_from_gamma > 0:
             raise ValueError(f"path_from_gamma must be > 0, got {self.path_from_gamma!r}")
         object.__setattr__(self, "gammas", gammas)
@@ -171,18 +179,25 @@ def _point_in(spec, **wanted) -> str | None:
     return None
 
 
-def _special_specs(study: Study, main) -> tuple[list, dict]:
-    """Sweep specs of the special runs that ``main`` lacks, and where each run is:
-    ``{role: (folder kind, run name, step)}`` with folder kind ``sweep`` or ``special``."""
+def _role(role: str, seed: int) -> str:
+    """The key of a special run: the role for seed 0 (as the figures use), else role@seed."""
+    return role if seed == 0 else f"{role}@{seed}"
+
+
+def _special_specs(study: Study, main, seed: int = 0) -> tuple[list, dict]:
+    """Sweep specs of the special runs of ``seed`` that ``main`` lacks, and where each run is:
+    ``{role: (folder kind, run name, step)}`` with folder kind ``sweep`` or ``special``
+    (roles :func:`_role`)."""
     from .sweep import SweepSpec
 
     v = study.vertices[0]
     specs, where = [], {}
-    common = dict(nu=study.nu, seeds=(0,), vertices=(v,), dv=study.dv,
+    common = dict(nu=study.nu, seeds=(seed,), vertices=(v,), dv=study.dv,
                   energy_convention=(study.energy_convention,))
 
     def need(role, gamma, steps, c0_cycle=True, **protocol):
-        name = _point_in(main, gamma=gamma, seed=0, n_vertices=v, c0_cycle=c0_cycle) \
+        role = _role(role, seed)
+        name = _point_in(main, gamma=gamma, seed=seed, n_vertices=v, c0_cycle=c0_cycle) \
             if steps * study.dv <= study.until + 1e-12 and not protocol else None
         if name is not None:
             where[role] = ("sweep", name, steps)
@@ -207,7 +222,11 @@ def _sweeps(study: Study, out: Path, *, scheduler, workers, progress) -> dict:
 
     check_scheduler(scheduler)
     main = study.sweep_spec()
-    specials, where = _special_specs(study, main) if study.special else ([], {})
+    specials, where = [], {}
+    for seed in range(study.special_seeds if study.special else 0):
+        more, found = _special_specs(study, main, seed)
+        specials += more
+        where.update(found)
     import distributed  # noqa: F401  (its import sets the level of its loggers)
 
     # as run_sweep: Dask's INFO logs only when shellbuckle logs at INFO
@@ -255,16 +274,17 @@ def _run(out: Path, where: dict, role: str):
     return run, int(table["step"].loc[matches[0]])
 
 
-def _fig11_path(study: Study, out: Path, where: dict, progress: bool) -> dict | None:
-    """The gamma path of Fig. 11 and its comparison with the bowl."""
+def _fig11_path(study: Study, out: Path, where: dict, progress: bool,
+                seed: int = 0) -> dict | None:
+    """The gamma path of Fig. 11 (for ``seed``) and its comparison with the bowl."""
     from .run import compare_paths, continue_in_parameter
 
-    capsule, k = _run(out, where, "fig11_capsule")
-    bowl, kb = _run(out, where, "fig11_bowl")
+    capsule, k = _run(out, where, _role("fig11_capsule", seed))
+    bowl, kb = _run(out, where, _role("fig11_bowl", seed))
     if capsule is None or bowl is None:
         log.warning("Fig. 11 path skipped: the capsule or the bowl run did not reach the volume")
         return None
-    name = (f"g{study.path_from_gamma:g}_to_g{SOLEIL_GAMMA:g}_v{study.vertices[0]}_s0_"
+    name = (f"g{study.path_from_gamma:g}_to_g{SOLEIL_GAMMA:g}_v{study.vertices[0]}_s{seed}_"
             f"step{k}")
     path = continue_in_parameter(capsule, k, out / "paths" / name, gamma=SOLEIL_GAMMA,
                                  increments=study.path_increments, progress=progress)
@@ -275,7 +295,8 @@ def _fig11_path(study: Study, out: Path, where: dict, progress: bool) -> dict | 
     return result
 
 
-def _reinflation(study: Study, out: Path, main_spec, progress: bool) -> dict | None:
+def _reinflation(study: Study, out: Path, main_spec, progress: bool,
+                 seed: int = 0) -> dict | None:
     """The paper's re-inflation (§4.4, Fig. 8): from a wrinkled (else polygonal) deflation at
     the stored step nearest dV/V = 0.474 — at gamma = 2916 if that run is wrinkled there, else
     at the study's gamma nearest to 2916 whose run is (the paper re-inflates a wrinkled
@@ -288,7 +309,7 @@ def _reinflation(study: Study, out: Path, main_spec, progress: bool) -> dict | N
                     key=lambda g: abs(math.log(g / REINFLATION_GAMMA)))
     candidates = []
     for gamma in gammas:
-        name = _point_in(main_spec, gamma=gamma, seed=0, n_vertices=study.vertices[0])
+        name = _point_in(main_spec, gamma=gamma, seed=seed, n_vertices=study.vertices[0])
         try:
             run = Run.open(out / "sweep" / name)
         except ValueError as exc:
@@ -322,11 +343,11 @@ def _reinflation(study: Study, out: Path, main_spec, progress: bool) -> dict | N
                      "3 and 4 wrinkles on re-inflation"}
 
 
-def _fig3_numbers(out: Path, where: dict) -> dict | None:
+def _fig3_numbers(out: Path, where: dict, seed: int = 0) -> dict | None:
     from .run import compare_paths
 
-    potato, kp = _run(out, where, "fig3_potato")
-    capsule, kc = _run(out, where, "fig3_capsule")
+    potato, kp = _run(out, where, _role("fig3_potato", seed))
+    capsule, kc = _run(out, where, _role("fig3_capsule", seed))
     if potato is None or capsule is None:
         return None
     result = compare_paths(capsule, kc, potato, kp)  # ratio = E_potato / E_capsule
@@ -466,6 +487,10 @@ def reproduce_paper(out, study: Study | None = None, *, workers: int | None = No
     fig11 = _fig11_path(study, out, where, progress) if study.special else None
     reinflation = (_reinflation(study, out, study.sweep_spec(), progress)
                    if study.special else None)
+    more_seeds = range(1, study.special_seeds if study.special else 1)
+    fig11_seeds = [fig11] + [_fig11_path(study, out, where, progress, s) for s in more_seeds]
+    reinflation_seeds = [reinflation] + [_reinflation(study, out, study.sweep_spec(), progress, s)
+                                         for s in more_seeds]
     t_path = time.perf_counter() - t0 - t_runs
     missing: list[str] = []
     written = _mesh_convergence(sweeps["catalogues"].get("sweep"), out)
@@ -486,6 +511,11 @@ def reproduce_paper(out, study: Study | None = None, *, workers: int | None = No
         "fig3": _fig3_numbers(out, where) if study.special else None,
         "fig11": fig11,
         "reinflation": reinflation,
+        "seeds_of_special_runs": {
+            "fig3": [_fig3_numbers(out, where, s) for s in range(study.special_seeds)]
+            if study.special else [],
+            "fig11": fig11_seeds if study.special else [],
+            "reinflation": reinflation_seeds if study.special else []},
         "written": [str(p) for p in written],
         "missing": missing,
         "wall_s": {"runs": t_runs, "fig11_path": t_path,

@@ -6,6 +6,7 @@ A thin layer over :func:`shellbuckle.reproduce.reproduce_paper`; see ``docs/repr
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 
 def register(sub) -> None:
@@ -41,6 +42,11 @@ def register(sub) -> None:
                         metavar="{" + ",".join(ENERGY_CONVENTIONS) + "}",
                         help="which bending energy kappa multiplies in every run (default "
                              "helfrich; see shellbuckle deflate --help)")
+    parser.add_argument("--compare-conventions", action="store_true",
+                        help="run the study under each energy convention (helfrich, paper, "
+                             "evolver-modulus) in OUT/<convention>/, special runs for every "
+                             "seed, and score each reading against every number of the paper: "
+                             "OUT/conventions.md, .json and conventions_thresholds.png")
     parser.add_argument("--no-special", action="store_true",
                         help="only the sweep: no Fig. 3 and Fig. 11 runs")
     parser.add_argument("--formats", default="png,pdf", help="figure formats (default png,pdf)")
@@ -84,6 +90,18 @@ def _cmd(args) -> int:
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:
         raise ValueError(f"--formats must be among png, pdf, svg; got {args.formats!r}")
+    if args.compare_conventions:
+        if args.energy_convention is not None:
+            raise ValueError("--compare-conventions runs every convention; do not give "
+                             f"--energy-convention (got {args.energy_convention!r})")
+        from ..convention_study import COMPARISON_MD, compare_conventions
+
+        data = compare_conventions(args.out, study, workers=args.workers,
+                                   scheduler=args.scheduler, progress=not args.quiet,
+                                   formats=formats)
+        print((Path(args.out) / COMPARISON_MD).read_text(encoding="utf-8"))
+        print(f"wall time: {data['wall_s']:.0f} s")
+        return 0
     summary = reproduce_paper(args.out, study, workers=args.workers, scheduler=args.scheduler,
                               progress=not args.quiet, formats=formats)
     _print(summary, args.out)

@@ -1,0 +1,75 @@
+"""reproduce-paper --compare-conventions (shellbuckle.convention_study) at a tiny scale.
+
+Oracle: a study under ``paper`` at gamma is the standard (helfrich) study at 4 gamma, so its
+measured thresholds are the same numbers at gammas four times smaller: the fitted exponent is
+the same and the prefactor is the standard one times 4^b (a power law a (4 gamma)^b).
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from shellbuckle import convention_study as cs
+from shellbuckle.cli import main
+from shellbuckle.reproduce import Study, reproduce_paper
+
+SMALL = dict(seeds=1, vertices=(200,), until=0.2, special=False)
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    base = tmp_path_factory.mktemp("readings")
+    reproduce_paper(base / "paper", Study(gammas=(500.0, 1000.0), energy_convention="paper",
+                                          **SMALL), workers=1, progress=False, formats=("png",))
+    reproduce_paper(base / "helfrich", Study(gammas=(2000.0, 4000.0), **SMALL), workers=1,
+                    progress=False, formats=("png",))
+    return cs.measure(base / "paper"), cs.measure(base / "helfrich")
+
+
+def test_paper_at_gamma_measures_as_helfrich_at_four_gamma(pair):
+    paper, helfrich = pair
+    assert paper["convention"] == "paper" and helfrich["convention"] == "helfrich"
+    a_p, b_p = paper["metrics"]["primary_a"].value, paper["metrics"]["primary_b"].value
+    a_h, b_h = helfrich["metrics"]["primary_a"].value, helfrich["metrics"]["primary_b"].value
+    assert math.isfinite(a_p) and b_p == pytest.approx(b_h, rel=1e-9)
+    assert a_p == pytest.approx(a_h * 4.0 ** b_h, rel=1e-9)
+
+
+def test_values_the_runs_cannot_reach_are_not_scored(pair):
+    paper, _ = pair
+    metrics = paper["metrics"]
+    assert set(metrics) == set(cs.CRITERIA)
+    # no run at gamma = 2916, 15163 or 20995, none to dV/V = 0.854, no special runs
+    for key in ("fig9", "hysteresis", "W_bowl", "fig3_ratio", "fig11_ratio", "reinflation",
+                "gallery_20995", "self_contact"):
+        assert metrics[key].agrees is None, key
+    assert paper["scored"] == sum(m.agrees is not None for m in metrics.values())
+    assert paper["score"] == sum(bool(m.agrees) for m in metrics.values())
+
+
+def test_the_verdict_needs_a_lead_of_two_points_and_half_the_values():
+    def result(name, score, scored=18):
+        return {"convention": name, "score": score, "scored": scored}
+    assert cs.verdict({"a": result("a", 12), "b": result("b", 11)}).startswith("undecided")
+    assert cs.verdict({"a": result("a", 12), "b": result("b", 10)}).startswith(
+        "a reproduces the paper best")
+    assert "no reading reproduces" in cs.verdict({"a": result("a", 7), "b": result("b", 2)})
+
+
+def test_every_criterion_is_stated_in_the_table(pair, tmp_path):
+    paper, helfrich = pair
+    text = cs.markdown({"helfrich": helfrich, "paper": paper})
+    for rule in cs.CRITERIA.values():
+        assert rule in text
+    rows = [line for line in text.splitlines() if line.startswith("| ")]
+    # a Markdown table: every row has the same number of cells
+    assert len({line.count(" | ") for line in rows}) == 1
+
+
+def test_compare_conventions_refuses_a_convention_with_the_flag(tmp_path, capsys):
+    code = main(["reproduce-paper", "--compare-conventions", "--energy-convention", "paper",
+                 "--out", str(tmp_path / "x")])
+    assert code == 2 and "--energy-convention" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
