@@ -73,3 +73,18 @@ def test_compare_conventions_refuses_a_convention_with_the_flag(tmp_path, capsys
                  "--out", str(tmp_path / "x")])
     assert code == 2 and "--energy-convention" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_the_report_states_the_reading_of_every_run(pair, tmp_path):
+    from pathlib import Path
+
+    from shellbuckle.report import write_report
+
+    paper, helfrich = pair
+    out = write_report([Path(paper["folder"]) / "sweep", Path(helfrich["folder"]) / "sweep"],
+                       tmp_path / "report.md", figures=False)
+    text = out.read_text(encoding="utf-8")
+    assert "paper (1/2 kappa (H - H0)^2, the standard shell at 4 gamma): 2 run(s)" in text
+    assert "helfrich (1/2 kappa (c1 + c2 - c0)^2): 2 run(s)" in text
+    provenance = text[text.index("Provenance"):]
+    assert provenance.count("| paper |") == 2 and provenance.count("| helfrich |") == 2

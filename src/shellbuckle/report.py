@@ -175,9 +175,24 @@ def _conventions(ctx, key, value):
                   f"{', '.join(sorted({fmt_number(v) for v in ctx.df['nu'].dropna()}))}",
             "gamma_from_d_over_R": "gamma = 12 (1 - 2 nu^2/(1-nu)) (R/d)^2 "
                                    "(shellbuckle.params.gamma_from_d_over_R)",
-            "spontaneous_curvature": "c = c1 + c2, c0 = 2/R on the stress-free sphere"}
+            "spontaneous_curvature": "c = c1 + c2, c0 = 2/R on the stress-free sphere; energy "
+                                     "convention(s) of the runs: " + _readings(ctx.df)}
     name = key.split(".")[-1]
     return info(key, value, ours.get(name, "same definitions"), "same convention")
+
+
+def _readings(df) -> str:
+    """The energy conventions of the runs with their bending energy and gamma factor."""
+    from .params import bending_factor, convention_formula
+
+    names = (df["energy_convention"].fillna("helfrich") if "energy_convention" in df
+             else pd.Series(["helfrich"] * len(df)))
+    out = []
+    for name, n in names.value_counts().items():
+        f = bending_factor(name)
+        scale = "" if f == 1 else f", the standard shell at {1 / f:g} gamma"
+        out.append(f"{name} ({convention_formula(name)}{scale}): {n} run(s)")
+    return "; ".join(out) if out else "none"
 
 
 def _set_of(values) -> list:
@@ -594,7 +609,8 @@ def _per_gamma(ctx) -> tuple[list[str], list[list[str]]]:
 def _provenance(df) -> tuple[list[str], list[list[str]]]:
     from .store.run import RunStore
 
-    header = ["run", "gamma", "nu", "seed", "mesh", "protocol", "status", "versions", "created"]
+    header = ["run", "gamma", "nu", "energy convention", "seed", "mesh", "protocol", "status",
+              "versions", "created"]
     rows = []
     for _, row in df.iterrows():
         meta = RunStore.open(row["path"]).meta
@@ -611,7 +627,8 @@ def _provenance(df) -> tuple[list[str], list[list[str]]]:
             shown["shellbuckle"] = f"{v['shellbuckle']} (git {v['shellbuckle_git']})"
         versions = ", ".join(f"{k} {shown[k]}" for k in ("shellbuckle", "python", "numpy", "scipy")
                              if shown.get(k))
-        rows.append([row["name"], fmt_number(row["gamma"]), fmt_number(row["nu"]),
+        convention = meta.get("params", {}).get("energy_convention", "helfrich")
+        rows.append([row["name"], fmt_number(row["gamma"]), fmt_number(row["nu"]), convention,
                      fmt_number(row["seed"]) if pd.notna(row["seed"]) else "n/a",
                      f"{row['mesh']}, {m.get('n_vertices')} vertices, sha256 "
                      f"{str(m.get('sha256', ''))[:12]}",
@@ -629,7 +646,8 @@ def build_document(df, tables, reference, fits=None, figures=None) -> list[tuple
     blocks: list[tuple] = [("h", 1, "Reproduction report: Quilliet et al., EPJE 27, 13 (2008)")]
     n_gamma = ctx.deflation["gamma"].round(6).nunique()
     blocks.append(("p", f"{len(df)} run(s), {len(ctx.deflation)} following the paper's "
-                        f"deflation protocol, at {n_gamma} gamma value(s). Reference: "
+                        f"deflation protocol, at {n_gamma} gamma value(s). Energy convention "
+                        f"(which bending energy kappa multiplies): {_readings(df)}. Reference: "
                         f"{reference.get('source', '')}. Numbers have 4 significant digits; an "
                         f"agreement is a difference within 2 sigma of our error, or within "
                         f"{100 * REL_AGREEMENT:.0f} % without an error estimate."))
