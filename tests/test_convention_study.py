@@ -88,3 +88,16 @@ def test_the_report_states_the_reading_of_every_run(pair, tmp_path):
     assert "helfrich (1/2 kappa (c1 + c2 - c0)^2): 2 run(s)" in text
     provenance = text[text.index("Provenance"):]
     assert provenance.count("| paper |") == 2 and provenance.count("| helfrich |") == 2
+
+
+def test_each_sensitivity_variant_changes_one_thing_from_the_base():
+    from dataclasses import fields
+
+    base, *variants = cs.sensitivity_specs(("helfrich", "paper"), 2, with_base=True)
+    assert base.energy_convention == ("helfrich", "paper") and base.seeds == (0, 1)
+    assert len(variants) == len(cs.VARIANTS) - 1
+    for spec, (name, change) in zip(variants, list(cs.VARIANTS.items())[1:]):
+        differ = {f.name for f in fields(base) if getattr(spec, f.name) != getattr(base, f.name)}
+        assert differ == set(change), name
+        point = spec.points()[0]
+        assert cs._variant_of(point | {"temperature": point["temperature"]}) == name

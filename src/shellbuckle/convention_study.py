@@ -482,15 +482,25 @@ def plot_thresholds(results: dict, path=None):
     return fig
 
 
+def best_readings(results: dict) -> tuple:
+    """``("helfrich", best)``: the standard reading and the best-scoring other one (the
+    sensitivity table's two readings)."""
+    others = sorted((r for n, r in results.items() if n != "helfrich"),
+                    key=lambda r: -r["score"])
+    return ("helfrich",) + ((others[0]["convention"],) if others else ())
+
+
 def compare_conventions(out, study=None, *, conventions=CONVENTIONS, workers=None,
                         scheduler=None, progress: bool = True, formats=("png", "pdf"),
-                        run: bool = True) -> dict:
+                        run: bool = True, sensitivity_seeds: int | None = None) -> dict:
     """Run the paper's study under each of ``conventions`` in ``OUT/<convention>/`` (resumable:
     finished runs are kept) and write the scored comparison: ``OUT/conventions.md`` (the
     table and the verdict), ``OUT/conventions.json`` (every value, per seed) and
     ``OUT/conventions_thresholds.png`` (thresholds under each reading). ``study`` sets the
     scale (default: the paper's, three seeds, the special runs for every seed); its
-    ``energy_convention`` is replaced. ``run=False`` only measures existing folders."""
+    ``energy_convention`` is replaced. ``run=False`` only measures existing folders.
+    ``sensitivity_seeds``: also the sensitivity table (:func:`sensitivity`) under helfrich
+    and the best other reading, with that many seeds."""
     import dataclasses
 
     from .params import check_convention
@@ -511,6 +521,12 @@ def compare_conventions(out, study=None, *, conventions=CONVENTIONS, workers=Non
             raise ValueError(f"{out / name} holds no study (no reproduction.json): run it first")
     results = {name: measure(out / name) for name in conventions}
     text = markdown(results)
+    if sensitivity_seeds:
+        readings = best_readings(results)
+        sensitivity(out, readings, seeds=sensitivity_seeds, workers=workers,
+                    scheduler=scheduler, progress=progress, run=run)
+        text += ("\nSensitivity (gamma = 2333 and 15163; readings "
+                 f"{', '.join(readings)}):\n\n" + (out / SENSITIVITY_MD).read_text("utf-8"))
     (out / COMPARISON_MD).write_text(text, encoding="utf-8")
     data = {"criteria": CRITERIA, "verdict": verdict(results),
             "readings": {n: {**{k: v for k, v in r.items() if k != "metrics"},
@@ -535,3 +551,120 @@ def _plain(value):
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+# --------------------------------------------------------------------------- sensitivity
+
+SENSITIVITY_GAMMAS = (2333.0, 15163.0)
+SENSITIVITY_MD, SENSITIVITY_CSV = "sensitivity.md", "sensitivity.csv"
+QUENCH_ITERATIONS = 300
+"""Conjugate-gradient iterations per minimization of the quench variant: the budget of the
+Fig. 3 pair on the paper's mesh (:func:`shellbuckle.reproduce.potato_quench`)."""
+VARIANTS = {
+    "base (T 0.05, Newton, juelicher, 3594)": {},
+    "jiggle T 0.01": {"temperature": (0.01,)},
+    "jiggle T 0.2": {"temperature": (0.2,)},
+    f"quench (CG, {QUENCH_ITERATIONS} iterations)": {"method": ("cg",),
+                                                     "max_iter": QUENCH_ITERATIONS},
+    "bending evolver": {"bending": ("evolver",)},
+    "mesh 10242": {"vertices": (10242,)},
+}
+"""The other suspects, one change each from the paper's protocol as we run it."""
+
+
+def _variant_of(row) -> str:
+    if row["n_vertices"] != 3594:
+        return f"mesh {int(row['n_vertices'])}"
+    if row["method"] == "cg":
+        return f"quench (CG, {QUENCH_ITERATIONS} iterations)"
+    if row["bending"] == "evolver":
+        return "bending evolver"
+    t = row["temperature"]
+    if isinstance(t, float) and math.isfinite(t) and abs(t - 0.05) > 1e-12:
+        return f"jiggle T {t:g}"
+    return "base (T 0.05, Newton, juelicher, 3594)"
+
+
+def sensitivity_specs(conventions, seeds: int, *, gammas=SENSITIVITY_GAMMAS,
+                      with_base: bool = False) -> list:
+    """The sweeps of the sensitivity table: each variant of :data:`VARIANTS` at ``gammas``
+    under each of ``conventions``, seeds 0..seeds-1 (the base too when ``with_base``)."""
+    from .sweep import SweepSpec
+
+    common = dict(gamma=tuple(gammas), seeds=tuple(range(seeds)), vertices=(3594,),
+                  energy_convention=tuple(conventions))
+    return [SweepSpec(**(common | change)) for change in VARIANTS.values()
+            if change or with_base]
+
+
+def sensitivity_table(frames) -> pd.DataFrame:
+    """One row per (variant, reading, gamma): the secondary thresholds and W over the seeds
+    (``collect_runs`` rows of the variants and of the base study)."""
+    df = pd.concat(frames, ignore_index=True)
+    df = df[df["gamma"].round(0).isin([round(g) for g in SENSITIVITY_GAMMAS])]
+    df = df.assign(variant=df.apply(_variant_of, axis=1))
+    rows = []
+    for (variant, convention, gamma), g in df.groupby(["variant", "energy_convention",
+                                                       df["gamma"].round(0)]):
+        row = {"variant": variant, "energy_convention": convention, "gamma": float(gamma),
+               "runs": len(g)}
+        for column in ("axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
+                       "stop_dV_over_V"):
+            v = g[column].to_numpy(float)
+            row[f"{column}_n"] = int(np.isfinite(v).sum())
+            row[f"{column}_mean"] = float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
+            row[f"{column}_std"] = _std(v)
+        rows.append(row)
+    order = {name: i for i, name in enumerate(VARIANTS)}
+    table = pd.DataFrame(rows)
+    return table.sort_values(["energy_convention", "gamma", "variant"],
+                             key=lambda c: c.map(order) if c.name == "variant" else c)
+
+
+def sensitivity_markdown(table: pd.DataFrame) -> str:
+    def cell(r, column):
+        n, m, s = r[f"{column}_n"], r[f"{column}_mean"], r[f"{column}_std"]
+        if n == 0:
+            return f"none (0/{r['runs']})"
+        text = f"{m:.3g}" + (f" ± {s:.2g}" if math.isfinite(s) else "")
+        return text + (f" ({n}/{r['runs']})" if n < r["runs"] else "")
+
+    lines = ["| reading | gamma | variant | runs | loss of axisymmetry | wrinkles | <W> in "
+             "[0.53, 0.76] | stop |", "|---|---|---|---|---|---|---|---|"]
+    for _, r in table.iterrows():
+        lines.append(f"| {r['energy_convention']} | {r['gamma']:g} | {r['variant']} | "
+                     f"{r['runs']} | {cell(r, 'axisymmetry_loss_dV_over_V')} | "
+                     f"{cell(r, 'wrinkles_dV_over_V')} | {cell(r, 'W_mean')} | "
+                     f"{cell(r, 'stop_dV_over_V')} |")
+    return "\n".join(lines) + "\n"
+
+
+def sensitivity(out, conventions, *, seeds: int = 2, workers=None, scheduler=None,
+                progress: bool = True, run: bool = True) -> pd.DataFrame:
+    """The sensitivity table at gamma = 2333 and 15163 under each of ``conventions``: the
+    secondary thresholds and W against the jiggle temperature, the minimization (converged or
+    a fixed CG quench), the bending discretization and the mesh, one change at a time, in
+    ``OUT/sensitivity/`` (resumable); the base is taken from ``OUT/<convention>/sweep`` when
+    the study is there, else run too. Writes ``OUT/sensitivity.md`` and ``.csv``."""
+    from .analysis.collect import collect_runs
+    from .sweep import _client, run_sweep
+
+    out = Path(out)
+    folder = out / "sensitivity"
+    bases = [out / c / "sweep" for c in conventions if (out / c / "sweep").is_dir()]
+    with_base = len(bases) < len(conventions)
+    if run:
+        client, owned = _client(scheduler, workers)
+        try:
+            for spec in sensitivity_specs(conventions, seeds, with_base=with_base):
+                run_sweep(spec, folder, scheduler=client, progress=progress)
+        finally:
+            for obj in owned:
+                obj.close()
+    frames = [collect_runs([folder])] if folder.is_dir() else []
+    frames += [collect_runs([b]) for b in bases]
+    table = sensitivity_table(frames)
+    table = table[table["energy_convention"].isin(conventions)]
+    table.to_csv(out / SENSITIVITY_CSV, index=False)
+    (out / SENSITIVITY_MD).write_text(sensitivity_markdown(table), encoding="utf-8")
+    return table

@@ -47,6 +47,11 @@ def register(sub) -> None:
                              "evolver-modulus) in OUT/<convention>/, special runs for every "
                              "seed, and score each reading against every number of the paper: "
                              "OUT/conventions.md, .json and conventions_thresholds.png")
+    parser.add_argument("--sensitivity", type=int, metavar="SEEDS", nargs="?", const=2,
+                        help="with --compare-conventions: also the sensitivity table at gamma "
+                             "2333 and 15163 under helfrich and the best other reading (jiggle "
+                             "temperature 0.01/0.2, a CG quench, Evolver's bending, a 10242-"
+                             "vertex mesh), with SEEDS seeds (default 2): OUT/sensitivity.md")
     parser.add_argument("--no-special", action="store_true",
                         help="only the sweep: no Fig. 3 and Fig. 11 runs")
     parser.add_argument("--formats", default="png,pdf", help="figure formats (default png,pdf)")
@@ -90,6 +95,10 @@ def _cmd(args) -> int:
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:
         raise ValueError(f"--formats must be among png, pdf, svg; got {args.formats!r}")
+    if args.sensitivity is not None and not args.compare_conventions:
+        raise ValueError("--sensitivity needs --compare-conventions (it uses the best reading)")
+    if args.sensitivity is not None and args.sensitivity < 1:
+        raise ValueError(f"--sensitivity must be a number of seeds >= 1, got {args.sensitivity}")
     if args.compare_conventions:
         if args.energy_convention is not None:
             raise ValueError("--compare-conventions runs every convention; do not give "
@@ -98,7 +107,7 @@ def _cmd(args) -> int:
 
         data = compare_conventions(args.out, study, workers=args.workers,
                                    scheduler=args.scheduler, progress=not args.quiet,
-                                   formats=formats)
+                                   formats=formats, sensitivity_seeds=args.sensitivity)
         print((Path(args.out) / COMPARISON_MD).read_text(encoding="utf-8"))
         print(f"wall time: {data['wall_s']:.0f} s")
         return 0
