@@ -430,7 +430,9 @@ def test_table_cli_prints_spec_header_and_refuses_bad_dir(tmp_path):
     parsed = pd.read_csv(io.StringIO(out))
     assert parsed["E_total"].tolist() == [1.0 / 3.0, 1.0 / 3.0 + 1]
     code, out, err = _cli(["table", str(tmp_path / "run")])
-    assert code == 0 and out.split()[:14] == SPEC_COLUMNS and "capsule" in out
+    header, _, body = out.partition("\n")
+    assert header.startswith("# gamma = ") and "energy convention helfrich" in header
+    assert code == 0 and body.split()[:14] == SPEC_COLUMNS and "capsule" in body
     for bad in [tmp_path / "nowhere", tmp_path]:
         code, out, err = _cli(["table", str(bad)])
         assert code == 2 and out == "" and str(bad) in err and "Traceback" not in err

@@ -50,7 +50,22 @@ def _register_table(sub) -> None:
 
         from .store import RunStore
 
-        table = RunStore.open(args.dir).table()
+        store = RunStore.open(args.dir)
+        table = store.table()
+        if not args.csv:  # CSV stays plain for parsers; run.json holds the parameters
+            from .params import ShellParameters, convention_formula
+
+            try:
+                p = ShellParameters.from_dict(store.params)
+            except (ValueError, TypeError):
+                p = None
+            if p is not None:
+                sys.stdout.write(
+                    f"# gamma = {p.gamma:.6g}, nu = {p.nu:.4g}, kappa = {p.kappa:.6g}, energy "
+                    f"convention {p.energy_convention} ({convention_formula(p.energy_convention)}"
+                    + (f"; the standard shell at gamma = {p.gamma_effective:.6g}"
+                       if p.energy_convention != "helfrich" else "")
+                    + "); energies in units of kappa\n")
         if args.csv:
             sys.stdout.write(table.to_csv(index=False, lineterminator="\n"))
         elif table.empty:
