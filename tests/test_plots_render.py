@@ -227,3 +227,16 @@ def test_bad_input_is_refused(sphere):
         render(ax3, sphere.X, sphere.faces + len(sphere.X))
     with pytest.raises(ValueError, match="positions"):
         render(ax3, sphere.X[:, :2], sphere.faces)
+
+
+@pytest.mark.parametrize("alpha_deg", [45.0, 80.0])
+def test_the_run_figure_looks_into_the_dent_also_of_a_deep_bowl(sphere, alpha_deg):
+    """The deflation figure's 3D panel looks from out of the dent: for a cap inverted about u
+    the view axis is +u, also when the bowl is so deep that its inverted vertices lie past
+    the centre (their mean position points to -u)."""
+    from shellbuckle.plots.run import view_axis
+
+    u = _axis(3)
+    X = inverted_cap(sphere.X, math.radians(alpha_deg), axis=u)
+    axis = view_axis(X, sphere.faces)
+    assert axis is not None and float(axis @ u) > 0.95

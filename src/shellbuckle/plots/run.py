@@ -69,13 +69,24 @@ def _rotation_to_z(axis):
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
 
 
-def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
+def view_axis(X, faces):
+    """The direction to look from at a conformation: out of its dent (the classifier's
+    ``dent_axis``), or None without a dent. In a deep bowl the negative-curvature vertices lie
+    past the centre, so their mean position would look at the back of the shell."""
+    from ..analysis.classify import classify
+
+    axis = classify(X, faces).dent_axis
+    return None if axis is None else np.asarray(axis, float)
+
+
+def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, axis=None):
     """Three panels: E/kappa vs dV/V with U_sphere and U_axisym; pressure vs dV/V with the
     shrunk-sphere pressure and the classical threshold p_c; the last conformation in 3D,
     coloured by ``curvature`` (per-vertex mean curvature H, or None).
 
     ``table`` is a run's per-step DataFrame (columns ``dV_over_V``, ``E_over_kappa``,
-    ``pressure``); ``params`` a :class:`~shellbuckle.params.ShellParameters`.
+    ``pressure``); ``params`` a :class:`~shellbuckle.params.ShellParameters`; ``axis``: the
+    direction the 3D view looks from (:func:`view_axis`; None: the shape as stored).
     """
     plt = _pyplot()
     fig = plt.figure(figsize=(13.5, 4.2), constrained_layout=True)
@@ -109,12 +120,6 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None):
     ax_p.set_ylim(min(0.0, float(np.nanmin(table["pressure"])) / p_scale * 1.1),
                   max(1.3, 1.1 * top))
     ax_p.legend(frameon=False, fontsize=8)
-    axis = None
-    if curvature is not None and (np.asarray(curvature) < 0).any():
-        # look into the dent: the direction of the inverted-curvature region from the centre
-        Xc = np.asarray(X, float) - np.asarray(X, float).mean(axis=0)
-        axis = Xc[np.asarray(curvature) < 0].mean(axis=0)
-        axis = None if np.linalg.norm(axis) < 1e-9 else axis
     render_surface(ax_s, X, faces, curvature, axis=axis, elev=35.0,
                    label=r"mean curvature $H$" if curvature is not None else None)
     last = table.iloc[-1]
@@ -139,4 +144,4 @@ def plot_deflation(run, path=None, step: int = -1):
     H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
     table = run.table
     table = table[table["step"] <= (run.steps[step])]
-    return plot_run(table, run.params, X, faces, H, path=path)
+    return plot_run(table, run.params, X, faces, H, path=path, axis=view_axis(X, faces))
