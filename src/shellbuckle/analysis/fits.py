@@ -84,11 +84,20 @@ class PowerLawFit:
                 "exponent_interval": None if self.exponent_interval is None
                 else list(self.exponent_interval)}
 
+    @property
+    def has_error(self) -> bool:
+        """Whether the fit has an error estimate: weighted by the seeds' sigma, or more points
+        than parameters (the residual scatter)."""
+        return math.isfinite(self.prefactor_err)
+
     def __str__(self) -> str:
         a = _with_error(self.prefactor, self.prefactor_err)
+        note = "" if self.has_error else (f", no error estimate: {self.n} point(s) for "
+                                          f"{1 if self.fixed_exponent else 2} parameter(s)")
         if self.fixed_exponent:
-            return f"{a} γ^{self.exponent:g} (exponent fixed)"
-        return f"{a} γ^{_with_error(self.exponent, self.exponent_err)}"
+            return f"{a} γ^{self.exponent:g} (exponent fixed{note})"
+        return f"{a} γ^{_with_error(self.exponent, self.exponent_err)}" + (
+            f" ({note[2:]})" if note else "")
 
 
 def _decimals(err: float) -> int:
@@ -101,7 +110,7 @@ def _decimals(err: float) -> int:
 def _with_error(value: float, err: float) -> str:
     """``2.80(±0.15)``: the error with one or two significant digits, the value to match."""
     if not (math.isfinite(err) and err > 0):
-        return f"{value:.4g}(±?)" if not err == 0 else f"{value:.4g}(±0)"
+        return f"{value:.4g}" if not err == 0 else f"{value:.4g}(±0)"
     d = _decimals(err)
     return f"{value:.{d}f}(±{err:.{d}f})"
 

@@ -96,6 +96,17 @@ def _name(run) -> str:
     return Path(run.path).name
 
 
+def _short(run) -> str:
+    """A run as a legend names it: its seed and what sets it apart, not its folder name."""
+    protocol = run.protocol
+    parts = [f"seed {protocol.seed}"]
+    if run.store.n_vertices != 3594:
+        parts.append(f"{run.store.n_vertices} vertices")
+    if run.params.energy_convention != "helfrich":
+        parts.append(run.params.energy_convention)
+    return ", ".join(parts)
+
+
 def nearest_step(run, dV_over_V: float) -> int:
     """The stored step of ``run`` whose ``dV_over_V`` is nearest to ``dV_over_V`` (the last on
     a tie, so along a path in gamma or c0 at fixed volume it is the end of the path).
@@ -349,8 +360,8 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     if not runs:
         raise ValueError("fig9_energy needs at least one run")
     if ax is None:
-        fig = Figure(figsize=(COLUMN, 2.8))
-        ax = fig.add_axes((0.15, 0.14, 0.82, 0.78))
+        fig = Figure(figsize=(1.65 * COLUMN, 2.8))  # the legend to the right of the axes
+        ax = fig.add_axes((0.095, 0.14, 0.55, 0.78))
     fig = ax.figure
     gammas = sorted({r.params.gamma for r in runs})
     single = len(gammas) == 1
@@ -364,8 +375,8 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     for i, run in enumerate(runs):
         table = run.table
         color = f"C{gammas.index(run.params.gamma)}" if not single else f"C{i}"
-        label = (f"$\\gamma$ = {run.params.gamma:g} ({_name(run)})" if not single else
-                 f"simulation, {_name(run)}")
+        label = (f"$\\gamma$ = {run.params.gamma:g}, {_short(run)}" if not single else
+                 f"simulation, {_short(run)}")
         ax.plot(table["dV_over_V"].to_numpy(float), table["E_over_kappa"].to_numpy(float),
                 "o-", ms=2.5, lw=0.9, color=color, label=label, gid=f"simulation:{_name(run)}",
                 zorder=4)
@@ -393,8 +404,9 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     ax.set_ylabel(r"elastic energy $E/\kappa$")
     ax.grid(True, alpha=0.25, lw=0.5)
     ax.tick_params(labelsize=7)
-    ax.legend(handles=handles, loc="upper left", fontsize=6, frameon=True, framealpha=0.85,
-              edgecolor="none", handlelength=2.2)
+    # beside the axes, never over the data (the curves fill the upper left and right)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6,
+              frameon=False, handlelength=2.2, borderaxespad=0.0)
     if single:
         note = runs[0].params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")
         ax.set_title(f"$\\gamma$ = {gammas[0]:g}, $\\nu$ = {runs[0].params.nu:.3g}{note}",
