@@ -78,6 +78,12 @@ def _nu(df) -> float:
     return float(nu[rounded == rounded.value_counts().idxmax()].iloc[0])
 
 
+def _gamma_colour(plt, t: float):
+    """Colour of a gamma mapped to ``t`` in [0, 1]: viridis without its pale yellow end,
+    which does not show on white."""
+    return plt.get_cmap("viridis")(0.82 * float(t))
+
+
 def _no_data(ax, text):
     ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", color="0.4")
 
@@ -182,7 +188,14 @@ def plot_W_vs_gamma(df, *, reference=None, path=None):
                                     capsize=3, ms=6, label="ours (mean ± std)")
             container.lines[0].set_gid("W_mean")
         else:
-            _no_data(ax, f"no wrinkled step with ΔV/V in [{window[0]}, {window[1]}]")
+            every = collect_mod.deflation_runs(df)
+            stops = every["stop_dV_over_V"].to_numpy(float) if len(every) else np.array([])
+            why = (f": the runs end at ΔV/V ≤ {np.nanmax(stops):.3g}"
+                   if len(stops) and np.nanmax(stops) < window[0] else "")
+            _no_data(ax, f"no wrinkled step with ΔV/V in [{window[0]}, {window[1]}]{why}")
+            if len(every):
+                g = every["gamma"].to_numpy(float)
+                ax.set_xlim(g.min() / 1.5, g.max() * 1.5)
         ax.set(xscale="log", xlabel=r"$\gamma = AR^2/\kappa$",
                ylabel=rf"$\langle W \rangle$, $\Delta V/V \in [{window[0]}, {window[1]}]$")
         ax.set_ylim(bottom=0)
@@ -222,7 +235,7 @@ def plot_W_vs_dV(df, tables=None, *, reference=None, path=None):
                 continue
             seed = "" if pd.isna(row["seed"]) else f", seed {row['seed']}"
             ax.plot(wrinkled["dV_over_V"].to_numpy(float), wrinkled["W"].to_numpy(float), "o-",
-                    ms=4, lw=1.0, color=plt.get_cmap("viridis")(norm(row["gamma"])),
+                    ms=4, lw=1.0, color=_gamma_colour(plt, norm(row["gamma"])),
                     label=rf"$\gamma$ = {row['gamma']:g}{seed}", gid=f"W_run:{row['name']}")
             drawn += 1
         if drawn == 0:

@@ -463,9 +463,9 @@ def fig11_paths(a, b, *, at: float | None = None, step_a: int | None = None,
     ka = nearest_step(a, at) if step_a is None else int(step_a)
     kb = nearest_step(b, at) if step_b is None else int(step_b)
     confs = [conformation(a, ka), conformation(b, kb)]
-    captions = [f"{tag}: {c.run}, step {c.step}\n{c.label}\n"
+    captions = [f"{tag}: {_how(run)}\n{c.label}\n"
                 f"$E/\\kappa$ = {_fmt(c.E_over_kappa)}\n$\\Delta V/V$ = {c.dV_over_V:.3f}"
-                for tag, c in zip("AB", confs)]
+                for tag, c, run in zip("AB", confs, (a, b))]
     hi, lo = sorted(range(2), key=lambda i: -confs[i].E_over_kappa)
     ratio = confs[hi].E_over_kappa / confs[lo].E_over_kappa
     footer = [f"ours: $E_{'AB'[hi]}/E_{'AB'[lo]}$ = {ratio:.3f}"]
@@ -487,6 +487,17 @@ def fig11_paths(a, b, *, at: float | None = None, step_a: int | None = None,
     fig = _row_figure(confs, captions, COLUMN, title, footer, tilt)
     fig.energy_ratio = ratio
     return fig
+
+
+def _how(run) -> str:
+    """How a conformation was reached, in a few words (the run folder is in the data)."""
+    control = run.protocol.control
+    if control == "gamma":
+        start = run.params_at(0).gamma
+        return f"$\\gamma$ path from {start:g}, seed {run.protocol.seed}"
+    if run.store.meta.get("parent"):
+        return f"branch, seed {run.protocol.seed}"
+    return f"deflation, seed {run.protocol.seed}"
 
 
 def _soleil_ratio(paper: dict | None) -> float | None:
