@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 
 def register(sub) -> None:
     parser = sub.add_parser(
-        "plot", help="write the paper's figures (Figs. 3, 7, 9, 11, galleries) from run folders",
+        "plot", help="write the paper's figures (Figs. 3, 4, 5, 7, 9, 10, 11, galleries) from run folders",
         description="Write the figures the runs DIR... allow, as PNG (300 dpi) and PDF: for "
                     "each run, Fig. 9 (E/kappa vs dV/V with U_sphere, U_axisym, the primary "
                     "buckling and the crossing) and the gallery of its conformations; with "
