@@ -126,11 +126,29 @@ def _near(gamma_series, gamma, rtol=0.01):
     return np.isclose(gamma_series.to_numpy(float), gamma, rtol=rtol)
 
 
+def _seed_fits(runs: pd.DataFrame) -> dict:
+    """The primary and secondary fits of one seed's runs, weighted as the fit to all seeds
+    is: each threshold by its resolution dv/sqrt(12) (one run per gamma has no scatter)."""
+    from .analysis.collect import threshold_points
+    from .analysis.fits import fit_power_law
+
+    points = {n: threshold_points(runs, n) for n in ("primary", "axisymmetry_loss", "wrinkles")}
+    secondary = pd.concat([points["axisymmetry_loss"], points["wrinkles"]], ignore_index=True)
+    fits = {}
+    for key, pts, exponent in (("primary", points["primary"], None),
+                               ("secondary", secondary, -1.0)):
+        if len(pts) >= (1 if exponent is not None else 2):
+            floor = pts["dv"].to_numpy(float) / math.sqrt(12.0)
+            fits[key] = fit_power_law(pts["gamma"], pts["mean"], sigma=floor,
+                                      exponent=exponent)
+    return fits
+
+
 def _fits(runs: pd.DataFrame, seeds) -> tuple[dict, dict]:
     from .analysis.collect import threshold_fits
 
     pooled = threshold_fits(runs)
-    per_seed = {s: threshold_fits(runs[runs["seed"] == s]) for s in seeds}
+    per_seed = {s: _seed_fits(runs[runs["seed"] == s]) for s in seeds}
     return pooled, per_seed
 
 
