@@ -8,9 +8,9 @@ from shellbuckle.analysis.descriptors import MIN_DENT_RADIUS
 from shellbuckle.mesh import icosphere
 from shellbuckle.mesh.contact import ContactChecker
 
-from test_analysis_shapes import (MESHES, dimpled, inverted_cap, jiggled, mesh, rotation)
+from test_analysis_shapes import dimpled, inverted_cap, jiggled, mesh, rotation
 
-KINDS = sorted(MESHES)
+KINDS = ["icosphere", "random"]   # icosphere(19) and random(3594)
 
 
 def _analyzer(kind):

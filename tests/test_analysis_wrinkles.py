@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from shellbuckle.analysis.wrinkles import APEX_PROMINENCE, CONCAVITY, N_MODES, rim_shape
+from shellbuckle.analysis.wrinkles import APEX_PROMINENCE, CONCAVITY, N_MODES, Curve, rim_shape
+
+from test_analysis_shapes import star_modulation
 
 K = 256
 PHI = 2 * np.pi * np.arange(K) / K
@@ -39,18 +41,46 @@ def test_spectrum_is_the_relative_mode_amplitude(m, phase):
 
 
 @pytest.mark.parametrize("m", range(3, 13))
-def test_convex_and_concave_cosine_rims(m):
+def test_local_curvature_of_cosine_rims(m):
     # rho = r0 (1 + eps cos m phi) has negative curvature at its minima iff eps (m^2 + 1) > 1
     # (rho^2 + 2 rho'^2 - rho rho'' < 0 at phi = pi/m)
     convex = rim_shape(R0 * (1 + 0.5 / (m * m + 1) * np.cos(m * PHI)), SMOOTH)
-    concave = rim_shape(R0 * (1 + 3.0 / (m * m + 1) * np.cos(m * PHI)), SMOOTH)
+    inflected = rim_shape(R0 * (1 + 3.0 / (m * m + 1) * np.cos(m * PHI)), SMOOTH)
     assert convex["curvature"].min() > 0
-    assert concave["curvature"].min() < 0
-    assert len(concave["apices"]) == m
-    assert (concave["arc_curvature"] < -CONCAVITY).all()
+    assert inflected["curvature"].min() < 0
+    assert len(inflected["apices"]) == m
     if 2 * 0.5 / (m * m + 1) >= APEX_PROMINENCE:  # peak-to-trough above the apex threshold
         assert len(convex["apices"]) == m
-        assert (convex["arc_curvature"] > CONCAVITY).all()
+        assert (convex["arc_curvature"] > 0.1).all()
+
+
+@pytest.mark.parametrize("m", range(3, 13))
+@pytest.mark.parametrize("sagitta", [0.01, 0.05, 0.15])
+def test_star_rim_dips_inside_the_chord_between_apices(m, sagitta):
+    # r0 (1 + eps cos m phi) with eps = star_modulation(m, s): the middle between two apices
+    # lies s chords inside the chord joining them (test_analysis_shapes)
+    eps = star_modulation(m, sagitta)
+    shape = rim_shape(R0 * (1 + eps * np.cos(m * PHI)), SMOOTH)
+    assert len(shape["apices"]) == m
+    # the smoothing multiplies mode m by exp(-(m SMOOTH / R0)^2 / 2): the smoothed curve is the
+    # star of that smaller eps
+    eps_smooth = eps * np.exp(-0.5 * (m * SMOOTH / R0) ** 2)
+    c, s_ = np.cos(np.pi / m), np.sin(np.pi / m)
+    expected = ((1 + eps_smooth) * c - (1 - eps_smooth)) / (2 * (1 + eps_smooth) * s_)
+    np.testing.assert_allclose(shape["arc_sagitta"], expected, rtol=0.02, atol=2e-4)
+    assert (shape["arc_sagitta"] > CONCAVITY).all()
+    np.testing.assert_allclose(shape["arc_chord"], 2 * R0 * (1 + eps_smooth) * s_, rtol=1e-3)
+
+
+@pytest.mark.parametrize("m", range(3, 13))
+def test_rim_bulging_out_of_its_chords_is_not_concave(m):
+    # the middle between two apices outside the chord (even where the curve turns inwards
+    # locally, eps (m^2 + 1) > 1 for the larger m): no arc dips inside its chord
+    eps = star_modulation(m, -0.01)
+    shape = rim_shape(R0 * (1 + eps * np.cos(m * PHI)), SMOOTH)
+    if 2 * eps >= APEX_PROMINENCE:
+        assert len(shape["apices"]) == m
+    assert (shape["arc_sagitta"] == 0).all()
 
 
 @pytest.mark.parametrize("m", range(3, 11))
@@ -61,7 +91,36 @@ def test_polygon_has_m_apices_and_straight_sides(m):
     expected = np.sort(np.mod(0.1 + np.pi / m + 2 * np.pi * np.arange(m) / m, 2 * np.pi))
     assert np.abs(np.angle(np.exp(1j * (apex_phi - expected)))).max() <= 2 * np.pi / K
     # the middle of every side is straight: zero curvature, neither concave nor convex
-    assert np.abs(s["arc_curvature"]).max() < 0.2 * CONCAVITY
+    assert np.abs(s["arc_curvature"]).max() < 0.02
+    assert s["arc_sagitta"].max() < 0.2 * CONCAVITY
+    # the arcs run along the sides: the spacing of the apices is the side length, a little
+    # less where the smoothing cuts the corner (the sharper, the more: 4 % for a triangle)
+    side = 2 * R0 * np.sin(np.pi / m)
+    assert ((s["spacing"] < side) & (s["spacing"] > 0.95 * side)).all()
+
+
+def star_polygon(m, inner):
+    """Polar equation of a star with ``m`` apices at radius R0 (azimuths ``2 pi k/m``) joined
+    by straight segments to ``m`` inner corners at radius ``inner`` halfway between them."""
+    t = np.mod(PHI + np.pi / m, 2 * np.pi / m) - np.pi / m   # from the nearest apex
+    a = np.array([R0, 0.0])
+    b = inner * np.array([np.cos(np.pi / m), np.sin(np.pi / m)])
+    d = b - a
+    u = np.abs(t)
+    # the ray at angle u meets the segment a + s d: cross((a + s d), (cos u, sin u)) = 0
+    s_ = (a[1] * np.cos(u) - a[0] * np.sin(u)) / (d[0] * np.sin(u) - d[1] * np.cos(u))
+    return np.hypot(a[0] + s_ * d[0], a[1] + s_ * d[1])
+
+
+@pytest.mark.parametrize("m", [4, 5, 7, 10])
+def test_star_polygon_sagitta_is_its_inner_corner_depth(m):
+    inner = 0.9 * R0 * np.cos(np.pi / m)   # the inner corners 10 % inside the chord's distance
+    shape = rim_shape(star_polygon(m, inner), SMOOTH)
+    assert len(shape["apices"]) == m
+    truth = (R0 * np.cos(np.pi / m) - inner) / (2 * R0 * np.sin(np.pi / m))
+    # the smoothing fills the sharp inner corners in more than it rounds the tips off
+    assert ((shape["arc_sagitta"] > 0.6 * truth) & (shape["arc_sagitta"] <= truth)).all()
+    assert (shape["arc_sagitta"] > CONCAVITY).all()
 
 
 def test_apex_across_the_start_of_the_samples_counts_once():
@@ -78,8 +137,8 @@ def test_rotating_the_rim_permutes_apices_and_arcs(shift):
     a, b = rim_shape(rho, SMOOTH), rim_shape(np.roll(rho, shift), SMOOTH)
     np.testing.assert_allclose(b["spectrum"], a["spectrum"], atol=1e-12)
     assert sorted((a["apices"] + shift) % K) == sorted(b["apices"])
-    np.testing.assert_allclose(np.sort(b["arc_curvature"]), np.sort(a["arc_curvature"]),
-                               atol=1e-9)
+    for key in ("arc_curvature", "arc_sagitta", "arc_chord", "spacing"):
+        np.testing.assert_allclose(np.sort(b[key]), np.sort(a[key]), atol=1e-9)
 
 
 def test_smoothing_removes_sub_resolution_ripples():
@@ -89,5 +148,28 @@ def test_smoothing_removes_sub_resolution_ripples():
     rough = clean + 0.03 * R0 * np.cos(60 * PHI)
     s = rim_shape(rough, 0.05)
     assert len(s["apices"]) == m
-    assert (s["arc_curvature"] < -CONCAVITY).all()
+    assert (s["arc_sagitta"] > CONCAVITY).all()
     assert len(rim_shape(rough, 0.0)["apices"]) > m  # unsmoothed, every ripple is an apex
+
+
+def _curve(rho, resolution):
+    return Curve.analysed(PHI, rho, np.zeros(K), SMOOTH, resolution=resolution)
+
+
+@pytest.mark.parametrize("m", [4, 8, 12])
+def test_apices_closer_than_the_resolution_are_not_counted(m):
+    rho = R0 * (1 + star_modulation(m, 0.05) * np.cos(m * PHI))
+    spacing = rim_shape(rho, SMOOTH)["spacing"]
+    assert _curve(rho, 0.9 * spacing.min()).count_resolved
+    assert not _curve(rho, 1.1 * spacing.min()).count_resolved
+
+
+def test_a_finer_pattern_partly_found_is_not_counted():
+    # 12 bumps whose amplitude fades to nothing on two sides: only some pass the apex
+    # prominence, and mode 12 dominates the mode of their count
+    rho = R0 * (1 + 0.02 * (1 + np.cos(2 * PHI)) * np.cos(12 * PHI))
+    curve = _curve(rho, 0.01)
+    assert 2 <= curve.n_apices < 12
+    assert not curve.count_resolved
+    full = _curve(R0 * (1 + 0.02 * np.cos(12 * PHI)), 0.01)
+    assert full.n_apices == 12 and full.count_resolved

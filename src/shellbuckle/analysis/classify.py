@@ -17,11 +17,14 @@ the paper reads its secondary thresholds:
     one dent whose rim lost axisymmetry (some mode ``m >= 2`` above the threshold) with
     ``corners`` apices (prominent maxima of the rim radius), the rim not concave between them.
 ``wrinkled``
-    a polygonal rim that is concave between successive apices on at least
-    ``WRINKLED_FRACTION`` of its arcs: ``W`` wrinkles, ``W = corners``.
+    a polygonal rim that is concave between successive apices (dips inside the chord joining
+    them, :mod:`.wrinkles`) on at least ``WRINKLED_FRACTION`` of its arcs (and at least two):
+    ``W`` wrinkles, ``W = corners``.
 ``other``
-    one dent whose rim cannot be traced around its axis, or a non-axisymmetric rim with fewer
-    than two apices.
+    one dent whose rim cannot be traced around its axis, a non-axisymmetric rim with fewer
+    than two apices, or one whose apices cannot be counted at the mesh's resolution
+    (``count_resolved`` False: :attr:`.wrinkles.Curve.count_resolved`), so that no wrong
+    number is reported.
 
 The axisymmetry threshold is ``max(AXISYMMETRY_THRESHOLD, AXISYMMETRY_EDGES h / rim_radius)``
 with ``h`` the mean edge length: the rim is located to a fraction of an edge, so the noise
@@ -63,9 +66,10 @@ class Classification:
     ``None`` without a dent); the rim, i.e. the outline of the depression
     (:mod:`.wrinkles`): ``rim_radius``, ``rim_spectrum (N_MODES,)`` (relative amplitudes of the
     modes ``m = 1..N_MODES``), ``dominant_mode`` and ``dominant_amplitude`` (largest mode
-    ``m >= 2``), ``axisymmetry_threshold`` used, ``concave_arcs``; ``crest_radius`` (the
-    ridge, the geometric rim); ``asphericity``, ``contact_distance``; and all
-    ``descriptors``.
+    ``m >= 2``), ``axisymmetry_threshold`` used, ``concave_arcs``, ``count_resolved`` (False
+    when the rim has apices that cannot be counted at the mesh's resolution, the shape is then
+    ``other``); ``crest_radius`` (the ridge, the geometric rim); ``asphericity``,
+    ``contact_distance``; and all ``descriptors``.
     """
 
     shape: str
@@ -82,6 +86,7 @@ class Classification:
     dominant_amplitude: float
     axisymmetry_threshold: float
     concave_arcs: int
+    count_resolved: bool
     asphericity: float
     contact_distance: float
     descriptors: Descriptors = field(repr=False)
@@ -103,6 +108,7 @@ class Classification:
         out["dent_axis"] = None if self.dent_axis is None else list(self.dent_axis)
         out["rim_spectrum"] = None if self.rim_spectrum is None else list(self.rim_spectrum)
         out["axisymmetry_threshold"] = self.axisymmetry_threshold
+        out["count_resolved"] = self.count_resolved
         out["descriptors"] = self.descriptors.as_dict()
         return out
 
@@ -119,6 +125,7 @@ def classify_descriptors(d: Descriptors) -> Classification:
     n = d.n_dimples
     corners = W = 0
     threshold = math.nan
+    resolved = True
     if n == 0:
         shape = "sphere"
     elif n >= 2:
@@ -129,8 +136,8 @@ def classify_descriptors(d: Descriptors) -> Classification:
         threshold = axisymmetry_threshold(outline, d.geometry.mean_edge)
         if outline.dominant_amplitude < threshold:
             shape = "capsule"
-        elif outline.n_apices < 2:
-            shape = "other"
+        elif outline.n_apices < 2 or not outline.count_resolved:
+            shape, resolved = "other", outline.count_resolved
         else:
             corners = outline.n_apices
             concave = outline.n_concave
@@ -151,6 +158,7 @@ def classify_descriptors(d: Descriptors) -> Classification:
         dominant_amplitude=outline.dominant_amplitude if rim is not None else math.nan,
         axisymmetry_threshold=threshold,
         concave_arcs=outline.n_concave if rim is not None else 0,
+        count_resolved=resolved,
         asphericity=d.asphericity, contact_distance=d.contact_distance, descriptors=d)
 
 

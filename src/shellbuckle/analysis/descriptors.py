@@ -95,8 +95,8 @@ class Geometry:
     ``X (V, 3)``; ``face_area (F,)``; ``vertex_area (V,)`` (``1/3`` of the adjacent face
     areas); ``vertex_normal (V, 3)`` unit, area-weighted mean of the outward face normals;
     ``H (V,)`` Jülicher mean curvature and ``H_smooth (V,)`` the same smoothed over
-    ``max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES mean_edge)`` (its sign defines the
-    dents); ``area``, ``volume`` (enclosed, positive for outward faces),
+    ``H_smoothing_length = max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES mean_edge)`` (its
+    sign defines the dents); ``area``, ``volume`` (enclosed, positive for outward faces),
     ``R_area = sqrt(area / 4 pi)`` and ``mean_edge`` (mean edge length); ``stiffness``, the
     cotangent stiffness matrix used by :meth:`smooth`.
     """
@@ -112,6 +112,7 @@ class Geometry:
     mean_edge: float
     stiffness: sp.csr_matrix = field(repr=False)
     H_smooth: np.ndarray = field(default=None, repr=False)
+    H_smoothing_length: float = math.nan
     _factors: dict = field(default_factory=dict, repr=False)
 
     def smooth(self, values, length: float) -> np.ndarray:
@@ -243,6 +244,7 @@ class ShapeAnalyzer:
                         stiffness=_cotan_stiffness(X, F, 2.0 * face_area))
         length = max(H_SMOOTHING_LENGTH * geom.R_area, H_SMOOTHING_EDGES * mean_edge)
         object.__setattr__(geom, "H_smooth", geom.smooth(H, length))
+        object.__setattr__(geom, "H_smoothing_length", length)
         return geom
 
     # ------------------------------------------------------------------ dents

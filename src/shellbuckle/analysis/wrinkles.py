@@ -1,8 +1,10 @@
 """The rim of a dent as curves: extraction, Fourier spectrum, apices, concavity, wrinkles W.
 
 Two closed curves around the dent axis are traced, in the dent frame (origin ``o`` on the axis,
-unit axis ``u`` pointing out of the dent, see :mod:`.descriptors`), each sampled by
-``RIM_SAMPLES`` rays from the axis at azimuths ``phi_k = 2 pi k / K``:
+unit axis ``u`` pointing out of the dent, see :mod:`.descriptors`), each sampled by ``K``
+rays from the axis at azimuths ``phi_k = 2 pi k / K`` (:func:`rim_samples`: at least
+``RAYS_PER_EDGE`` rays per mean edge length along ``2 pi R_area``, so a fine mesh is sampled as
+finely as a coarse one):
 
 Crest (the geometric rim)
 -------------------------
@@ -48,16 +50,33 @@ Apices, concavity and W
 a physical length, raised to the mesh resolution on coarse meshes, where shorter details are
 discretization noise. *Apices* are the local maxima of the smoothed ``rho`` whose topographic
 prominence is at least ``APEX_PROMINENCE`` times the radius and ``APEX_RELATIVE`` times the
-largest prominence. The signed curvature of the smoothed planar curve,
-``kappa = (rho^2 + 2 rho'^2 - rho rho'') / (rho^2 + rho'^2)^(3/2)`` (derivatives in ``phi``,
-exact from the smoothed Fourier series), is made dimensionless as ``kappa * radius`` (1 on a
-circle, 0 on a straight side of a polygon). The concavity of the arc between two successive
-apices is its mean ``kappa * radius`` over the middle ``ARC_WINDOW`` of the arc, centred on the
-arc's innermost point: the turning of the tangent across the window divided by its length, a
-first-derivative measure much less noisy than the pointwise curvature. The arc is *concave*
-when this is below ``-CONCAVITY``: the outline bows towards the axis between the apices. The
-number of wrinkles ``W`` is the number of apices of an outline on which at least
-``WRINKLED_FRACTION`` of the arcs are concave (:mod:`.classify`).
+largest prominence; each is placed between the samples (the vertex of the parabola through the
+three samples about the maximum).
+
+The arc between two successive apices is *concave* when it dips inside the chord joining them:
+``arc_sagitta``, the largest distance of the arc inside the chord (on the side of the axis)
+divided by the chord's length, exceeds ``CONCAVITY``, and that distance exceeds
+``CONCAVITY_EDGES h`` (the noise of the traced curve). A straight side gives 0, a convex one 0
+(no point inside), a star-shaped outline its depth between the tips. This is the paper's
+"limits of the depression concave between the apices" read on positions only: scale-free (the
+same fraction of the chord for any ``m`` and any rim radius) and far less noisy than a
+curvature: on the straight-sided outlines of polygonal dents with 8 to 10 corners on
+10242-vertex meshes the mean ``kappa * radius`` of the middle of a side scatters down to -0.6,
+their sagitta stays 0 (docs/analysis.md). The number of wrinkles
+``W`` is the number of apices of an outline on which at least ``WRINKLED_FRACTION`` of the arcs
+are concave (:mod:`.classify`). ``arc_curvature`` (the mean ``kappa * radius`` over the middle
+``ARC_WINDOW`` of the arc, ``kappa = (rho^2 + 2 rho'^2 - rho rho'') / (rho^2 + rho'^2)^(3/2)``)
+is reported but not used.
+
+Resolution
+----------
+The outline is the zero line of ``H`` smoothed over ``ell_H`` and then smoothed over ``ell``
+along itself; apices closer than ``APEX_SPACING sqrt(ell_H^2 + ell^2)`` along it (the crest:
+the normals' smoothing instead of ``ell_H``) are not resolved. :attr:`Curve.count_resolved`
+says whether a count can be trusted: no two successive apices closer than that, and no mode
+of the curve above the count ``MODE_DOMINANCE`` times stronger than the count's own (a finer
+pattern found in part) nor a mode below it ``LOWER_MODE_DOMINANCE`` times stronger (spurious
+apices on a coarser shape). An untrusted count is not reported (:mod:`.classify`).
 """
 
 from __future__ import annotations
@@ -68,8 +87,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import find_peaks
 
-#: Rays from the axis at which the rim is sampled (uniform in azimuth).
+#: Rays from the axis at which the rim is sampled (uniform in azimuth): at least RIM_SAMPLES,
+#: and at least RAYS_PER_EDGE per mean edge length along the circumference 2 pi R_area (rounded
+#: up to a power of two), so that fine meshes are sampled as finely as coarse ones.
 RIM_SAMPLES = 256
+RAYS_PER_EDGE = 4
 #: Number of Fourier modes of the rim reported, m = 1 .. N_MODES.
 N_MODES = 20
 #: Smoothing of the rim curve, standard deviation in arc length, in units of R_area ...
@@ -84,14 +106,26 @@ APEX_RELATIVE = 0.1
 #: before the crest is located (diffusion on the surface, :meth:`Geometry.smooth`).
 NORMAL_SMOOTHING_LENGTH = 0.02
 NORMAL_SMOOTHING_EDGES = 0.5
-#: The window of an arc in which its mean curvature is measured: this fraction of the arc,
-#: centred on the arc's innermost point.
+#: The window of an arc in which its mean curvature ``arc_curvature`` is measured (reported, not
+#: used to classify): this fraction of the arc, centred on the arc's innermost point.
 ARC_WINDOW = 0.5
-#: An arc between apices is concave when its mean curvature in the window, times the rim
-#: radius, is below -CONCAVITY (a straight side gives 0, a circle 1). Calibration
-#: (docs/analysis.md): synthetic convex outlines give >= +0.47, concave ones <= -0.45; the
-#: scatter between the arcs of one real outline is about 0.1.
-CONCAVITY = 0.1
+#: An arc between two successive apices is concave when it dips inside the chord joining them
+#: by more than CONCAVITY times the chord (``arc_sagitta``) and by more than CONCAVITY_EDGES
+#: mean edge lengths (the noise of the traced curve). A straight or convex side gives 0.
+#: Calibration: docs/analysis.md.
+CONCAVITY = 0.005
+CONCAVITY_EDGES = 0.05
+#: Resolution: apices closer than APEX_SPACING blur lengths (along the smoothed curve) are not
+#: resolved, the blur length being sqrt(ell_field^2 + ell^2) with ell_field the smoothing of
+#: the field whose zero line is the curve (H for the outline, the normals for the crest) and
+#: ell the smoothing of the curve itself. A count n is also not trusted when a mode above n
+#: (up to N_MODES, or the highest mode resolved if that is more) is MODE_DOMINANCE times
+#: stronger than mode n (the apices of a finer pattern were partly missed), or a mode between
+#: 2 and n - 1 is LOWER_MODE_DOMINANCE times stronger (spurious apices on a coarser shape).
+#: Calibration: docs/analysis.md.
+APEX_SPACING = 3.0
+MODE_DOMINANCE = 2.0
+LOWER_MODE_DOMINANCE = 4.0
 #: Refinements of the dent frame (axis from the bowl's vector area, origin at the rim centroid).
 FRAME_ITERATIONS = 2
 
@@ -102,9 +136,15 @@ class Curve:
 
     ``phi (K,)`` azimuths, ``rho (K,)`` distances from the axis, ``z (K,)`` heights along it;
     ``smoothing_length``, ``rho_smooth (K,)``, ``curvature (K,)`` (``kappa * radius``),
-    ``spectrum (N_MODES,)``, ``apices (n,)`` (indices into ``phi``), ``prominences (n,)``
-    (relative to the radius) and ``arc_curvature (n,)``: concavity measure of the arc from apex
-    ``j`` to apex ``j + 1`` (cyclically; empty with fewer than two apices).
+    ``spectrum (N_MODES,)`` and ``amplitudes (K // 2,)`` (relative amplitudes of the modes
+    ``m = 1, 2, ...``), ``apices (n,)`` (indices into ``phi``), ``prominences (n,)``
+    (relative to the radius); per arc from apex ``j`` to apex ``j + 1`` (cyclically; empty with
+    fewer than two apices): ``arc_curvature (n,)`` (mean ``kappa * radius`` in the middle
+    window), ``arc_chord (n,)`` (distance between the two apices), ``arc_sagitta (n,)`` (how far
+    the arc dips inside that chord, relative to it; 0 for a straight or convex side) and
+    ``spacing (n,)`` (arc length along the smoothed curve). ``resolution``: the smallest apex
+    spacing resolved (a length); ``depth_floor``: the smallest depth ``arc_sagitta * arc_chord``
+    of a concave arc (the noise of the curve).
     """
 
     phi: np.ndarray
@@ -114,13 +154,21 @@ class Curve:
     rho_smooth: np.ndarray
     curvature: np.ndarray
     spectrum: np.ndarray
+    amplitudes: np.ndarray
     apices: np.ndarray
     prominences: np.ndarray
     arc_curvature: np.ndarray
+    arc_chord: np.ndarray
+    arc_sagitta: np.ndarray
+    spacing: np.ndarray
+    resolution: float = 0.0
+    depth_floor: float = 0.0
 
     @classmethod
-    def analysed(cls, phi, rho, z, smoothing_length: float) -> "Curve":
+    def analysed(cls, phi, rho, z, smoothing_length: float, resolution: float = 0.0,
+                 depth_floor: float = 0.0) -> "Curve":
         return cls(phi=phi, rho=rho, z=z, smoothing_length=float(smoothing_length),
+                   resolution=float(resolution), depth_floor=float(depth_floor),
                    **rim_shape(rho, smoothing_length))
 
     @property
@@ -136,8 +184,14 @@ class Curve:
         return int(len(self.apices))
 
     @property
+    def concave(self) -> np.ndarray:
+        """``(n,)`` bool: the arcs that dip inside their chord (:data:`CONCAVITY`)."""
+        return ((self.arc_sagitta > CONCAVITY)
+                & (self.arc_sagitta * self.arc_chord > self.depth_floor))
+
+    @property
     def n_concave(self) -> int:
-        return int((self.arc_curvature < -CONCAVITY).sum())
+        return int(self.concave.sum())
 
     @property
     def dominant_mode(self) -> int:
@@ -147,6 +201,31 @@ class Curve:
     @property
     def dominant_amplitude(self) -> float:
         return float(self.spectrum[1:].max())
+
+    @property
+    def max_resolved_mode(self) -> int:
+        """The highest mode whose wavelength along the curve, ``2 pi radius / m``, is at least
+        the ``resolution``."""
+        if self.resolution <= 0:
+            return len(self.amplitudes)
+        return int(min(len(self.amplitudes), 2.0 * math.pi * self.radius // self.resolution))
+
+    @property
+    def count_resolved(self) -> bool:
+        """Whether the number of apices can be trusted: every two successive apices are at least
+        ``resolution`` apart along the curve, and no resolved mode above ``n_apices`` is
+        :data:`MODE_DOMINANCE` times stronger than mode ``n_apices`` (a finer pattern whose
+        apices were only partly found). True with fewer than two apices (nothing counted)."""
+        n = self.n_apices
+        if n < 2:
+            return True
+        if self.spacing.min() < self.resolution:
+            return False
+        own = self.amplitudes[n - 1]
+        higher = self.amplitudes[n:max(self.max_resolved_mode, N_MODES)]
+        lower = self.amplitudes[1:n - 1]
+        return not ((len(higher) and higher.max() > MODE_DOMINANCE * own)
+                    or (len(lower) and lower.max() > LOWER_MODE_DOMINANCE * own))
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,11 +324,21 @@ def _crossings(geom, topology, bowl, n_rho):
     return points[pick]
 
 
-def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
+def rim_samples(R_area: float, mean_edge: float) -> int:
+    """Number of rays: at least :data:`RIM_SAMPLES` and :data:`RAYS_PER_EDGE` per mean edge
+    length along ``2 pi R_area``, rounded up to a power of two."""
+    need = RAYS_PER_EDGE * 2.0 * math.pi * R_area / mean_edge
+    return max(RIM_SAMPLES, 1 << int(math.ceil(math.log2(max(need, 1.0)))))
+
+
+def find_rim(geom, topology, dent, components, samples: int | None = None):
     """Rim of ``dent`` (:class:`shellbuckle.analysis.descriptors.Dent`) on the conformation
     ``geom`` (:class:`~shellbuckle.analysis.descriptors.Geometry`, whose ``H_smooth`` defines
     the dent), or ``None`` if the bowl or the dent does not surround the dent's axis.
-    ``components(mask)`` labels connected vertex sets (:meth:`ShapeAnalyzer.components`)."""
+    ``components(mask)`` labels connected vertex sets (:meth:`ShapeAnalyzer.components`).
+    ``samples``: number of rays (default :func:`rim_samples`)."""
+    if samples is None:
+        samples = rim_samples(geom.R_area, geom.mean_edge)
     X = geom.X
     in_dent = np.zeros(len(X), dtype=bool)
     in_dent[dent.vertices] = True
@@ -287,9 +376,20 @@ def find_rim(geom, topology, dent, components, samples: int = RIM_SAMPLES):
     if ro is None:
         return None
     length = max(RIM_SMOOTHING_LENGTH * geom.R_area, RIM_SMOOTHING_EDGES * geom.mean_edge)
+    floor = CONCAVITY_EDGES * geom.mean_edge
     return Rim(origin=o, axis=u, e1=e1, e2=e2, bowl=bowl,
-               crest=Curve.analysed(phi, r, zr, length),
-               outline=Curve.analysed(phi, ro, zo, length))
+               crest=Curve.analysed(phi, r, zr, length, resolution(n_length, length), floor),
+               outline=Curve.analysed(phi, ro, zo, length,
+                                      resolution(geom.H_smoothing_length, length), floor))
+
+
+def resolution(field_smoothing: float, curve_smoothing: float) -> float:
+    """Smallest apex spacing resolved on a curve traced as the zero line of a field smoothed
+    over ``field_smoothing`` and then smoothed over ``curve_smoothing`` along itself:
+    :data:`APEX_SPACING` times the combined blur ``sqrt(field^2 + curve^2)``."""
+    if not math.isfinite(field_smoothing):
+        field_smoothing = 0.0
+    return APEX_SPACING * math.hypot(field_smoothing, curve_smoothing)
 
 
 def _trace(geom, topology, region, field, o, u, e1, e2, phi):
@@ -308,15 +408,16 @@ def _trace(geom, topology, region, field, o, u, e1, e2, phi):
 
 
 def rim_shape(rho, smoothing_length: float) -> dict:
-    """Spectrum, smoothed curve, curvature, apices and arc concavity of a rim ``rho (K,)``
-    sampled uniformly in azimuth (module docstring). ``smoothing_length`` in the units of
-    ``rho``. Returns a dict with ``rho_smooth``, ``curvature``, ``spectrum``, ``apices``,
-    ``prominences``, ``arc_curvature``."""
+    """Spectrum, smoothed curve, curvature, apices and arcs of a rim ``rho (K,)`` sampled
+    uniformly in azimuth (module docstring). ``smoothing_length`` in the units of ``rho``.
+    Returns a dict with ``rho_smooth``, ``curvature``, ``spectrum``, ``amplitudes``,
+    ``apices``, ``prominences``, ``arc_curvature``, ``arc_chord``, ``arc_sagitta``,
+    ``spacing``."""
     rho = np.asarray(rho, dtype=np.float64)
     K = len(rho)
     c = np.fft.rfft(rho) / K
     c0 = c[0].real
-    spectrum = 2.0 * np.abs(c[1:N_MODES + 1]) / c0
+    amplitudes = 2.0 * np.abs(c[1:]) / c0
     m = np.arange(len(c))
     sigma = smoothing_length / c0
     cs = c * np.exp(-0.5 * (m * sigma) ** 2)
@@ -329,11 +430,23 @@ def rim_shape(rho, smoothing_length: float) -> dict:
         keep = prominences >= APEX_RELATIVE * prominences.max()
         apices, prominences = apices[keep], prominences[keep]
     # tangent angle psi = phi + beta, beta = angle from the radial direction to the tangent
-    psi = np.unwrap(2.0 * np.pi * np.arange(K) / K + np.arctan2(r, r1))
+    phi = 2.0 * np.pi * np.arange(K) / K
+    psi = np.unwrap(phi + np.arctan2(r, r1))
     ds = np.sqrt(r * r + r1 * r1) * (2.0 * np.pi / K)
-    arcs = np.zeros(len(apices) if len(apices) >= 2 else 0)
-    for j in range(len(arcs)):
-        idx = _arc(apices[j], apices[(j + 1) % len(apices)], K)
+    s = np.concatenate([[0.0], np.cumsum(ds)])  # arc length from sample 0, (K + 1,)
+    points = np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
+    n = len(apices) if len(apices) >= 2 else 0
+    arcs, chords, sagittas, spacing = (np.zeros(n) for _ in range(4))
+    # apices between the samples (parabola through the three samples about each maximum),
+    # their points from the smoothed series and their arc length from the nearest sample
+    shift = _vertex_offset(r[(apices - 1) % K], r[apices], r[(apices + 1) % K])
+    tip_phi = (apices + shift) * (2.0 * np.pi / K)
+    tip_r = c0 + 2.0 * (cs[1:, None] * np.exp(1j * np.outer(m[1:], tip_phi))).real.sum(axis=0)
+    tips = np.stack([tip_r * np.cos(tip_phi), tip_r * np.sin(tip_phi)], axis=1)
+    tip_s = s[apices] + shift * ds[apices]
+    for j in range(n):
+        k = (j + 1) % len(apices)
+        idx = _arc(apices[j], apices[k], K)
         centre = int(np.argmin(r[idx]))
         half = max(1, int(round(0.5 * ARC_WINDOW * (len(idx) - 1))))
         lo, hi = centre - half, centre + half
@@ -341,8 +454,35 @@ def rim_shape(rho, smoothing_length: float) -> dict:
         turn = (psi[window[-1] % K] - psi[window[0] % K]
                 + 2.0 * np.pi * ((window[-1] // K) - (window[0] // K)))
         arcs[j] = turn / ds[window[:-1] % K].sum() * c0
-    return dict(rho_smooth=r, curvature=kappa, spectrum=spectrum, apices=apices,
-                prominences=prominences / c0, arc_curvature=arcs)
+        chords[j], sagittas[j] = _sagitta(np.concatenate([tips[j:j + 1], points[idx[1:-1]],
+                                                          tips[k:k + 1]]))
+        spacing[j] = (tip_s[k] - tip_s[j]) % s[-1] or s[-1]
+    return dict(rho_smooth=r, curvature=kappa, spectrum=amplitudes[:N_MODES].copy(),
+                amplitudes=amplitudes, apices=apices, prominences=prominences / c0,
+                arc_curvature=arcs, arc_chord=chords, arc_sagitta=sagittas, spacing=spacing)
+
+
+def _vertex_offset(left, centre, right):
+    """Offset, in samples, of the vertex of the parabola through three equally spaced samples
+    from the middle one (in [-0.5, 0.5] at a maximum)."""
+    den = left - 2.0 * centre + right
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(den < 0, 0.5 * (left - right) / den, 0.0)
+    return np.clip(out, -0.5, 0.5)
+
+
+def _sagitta(points: np.ndarray) -> tuple[float, float]:
+    """Chord length between the ends of the arc ``points (n, 2)`` (traversed counterclockwise
+    about the origin) and the largest distance of the arc inside the chord (on its left, the
+    side of the axis for a curve around it), relative to the chord; 0 when no point is."""
+    a, b = points[0], points[-1]
+    chord = b - a
+    length = float(np.hypot(*chord))
+    if length == 0.0:
+        return 0.0, 0.0
+    rel = points - a
+    left = (chord[0] * rel[:, 1] - chord[1] * rel[:, 0]) / length
+    return length, max(0.0, float(left.max())) / length
 
 
 def _arc(i: int, j: int, K: int) -> np.ndarray:
@@ -370,7 +510,9 @@ def rim_summary(rim: Rim | None) -> dict:
         return {"crest_radius": math.nan, "crest_height": math.nan, "crest_spectrum": None,
                 "rim_radius": math.nan, "rim_spectrum": None, "rim_dominant_mode": None,
                 "rim_dominant_amplitude": math.nan, "rim_apices": 0, "rim_concave_arcs": 0,
-                "rim_arc_curvature": None, "rim_smoothing_length": math.nan}
+                "rim_arc_curvature": None, "rim_arc_sagitta": None, "rim_apex_spacing": None,
+                "rim_resolution": math.nan, "rim_count_resolved": True,
+                "rim_smoothing_length": math.nan, "rim_samples": 0}
     c, o = rim.crest, rim.outline
     return {"crest_radius": c.radius, "crest_height": c.height,
             "crest_spectrum": [float(v) for v in c.spectrum],
@@ -378,4 +520,7 @@ def rim_summary(rim: Rim | None) -> dict:
             "rim_dominant_mode": o.dominant_mode, "rim_dominant_amplitude": o.dominant_amplitude,
             "rim_apices": o.n_apices, "rim_concave_arcs": o.n_concave,
             "rim_arc_curvature": [float(v) for v in o.arc_curvature],
-            "rim_smoothing_length": o.smoothing_length}
+            "rim_arc_sagitta": [float(v) for v in o.arc_sagitta],
+            "rim_apex_spacing": [float(v) for v in o.spacing],
+            "rim_resolution": o.resolution, "rim_count_resolved": o.count_resolved,
+            "rim_smoothing_length": o.smoothing_length, "rim_samples": len(o.phi)}
