@@ -55,6 +55,7 @@ from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol  # noqa: E402
 from shellbuckle.solve.linear import CountingSolver  # noqa: E402
+from shellbuckle.solve.workspace import Workspace  # noqa: E402
 
 from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
 
@@ -102,7 +103,7 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         ctx, state = protocol_mod.init(mesh, params, protocol, threads=threads)
-        ctx = dataclasses.replace(ctx, solver=CountingSolver(ctx.solver))
+        ctx = dataclasses.replace(ctx, workspace=Workspace(CountingSolver(ctx.workspace.solver)))
         t_init = time.perf_counter() - t0
         records = []
         while state.stopped is None:
@@ -121,7 +122,7 @@ def run_one(mesh, gamma: float, *, dv: float, until: float, seed: int, per_step:
     its = np.array([r["iterations"] for r in records])
     return dict(gamma=gamma, seed=seed, vertices=mesh.n_vertices, steps=len(records),
                 total=total, cpu=cpu,
-                init=t_init, factor=ctx.solver.n_factor / len(records),
+                init=t_init, factor=ctx.workspace.solver.n_factor / len(records),
                 per_step=(total - t_init) / len(records), it_mean=its.mean(),
                 it_max=its.max(),
                 buckle=records[drops[0] + 1]["dV_over_V"] if len(drops) else float("nan"),

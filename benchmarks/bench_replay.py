@@ -26,10 +26,11 @@ mean``, the mean of ``(E_replay - E_stored) / |E_stored|`` over the steps (in un
 1e-3): where a variant ends at other minima, whether they lie systematically higher or lower
 (the wrinkled regime has many nearly degenerate ones).
 
-``--option KEY=VALUE`` (repeatable) passes a keyword argument of
-:func:`shellbuckle.solve.newton.newton` (``memory``, ``max_quasi``, ``relax_tol``, ...; the value
-is a Python literal) to every minimization of the replays, to measure a setting on the same
-work before changing its default. The trajectory itself is always made with the defaults.
+``--option KEY=VALUE`` (repeatable) sets a field of
+:class:`shellbuckle.solve.options.NewtonOptions` (``memory``, ``max_quasi``, ``relax_tol``, ...;
+the value is a Python literal) for every minimization of the replays, to measure a setting on
+the same work before changing its default. The trajectory itself is always made with the
+defaults.
 """
 
 from __future__ import annotations
@@ -43,7 +44,6 @@ import argparse  # noqa: E402
 import ast  # noqa: E402
 import contextlib  # noqa: E402
 import dataclasses  # noqa: E402
-import inspect  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -54,7 +54,8 @@ from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol, State  # noqa: E402
 from shellbuckle.solve.linear import CountingSolver  # noqa: E402
-from shellbuckle.solve.newton import newton  # noqa: E402
+from shellbuckle.solve.options import NewtonOptions  # noqa: E402
+from shellbuckle.solve.workspace import Workspace  # noqa: E402
 from shellbuckle.store.run import source_commit  # noqa: E402
 
 from machine import describe, reference, reference_line  # noqa: E402  (benchmarks/machine.py)
@@ -66,7 +67,8 @@ def _context(mesh, gamma: float, seed: int):
     protocol = Protocol.paper(seed=seed)
     ctx, state = protocol_mod.init(mesh, ShellParameters.from_gamma(gamma, nu=1.0 / 3.0),
                                    protocol, threads=1)
-    return dataclasses.replace(ctx, solver=CountingSolver(ctx.solver)), state
+    workspace = Workspace(CountingSolver(ctx.workspace.solver))
+    return dataclasses.replace(ctx, workspace=workspace), state
 
 
 def trajectory(path: Path, mesh, gamma: float, seed: int) -> dict:
@@ -89,10 +91,9 @@ def trajectory(path: Path, mesh, gamma: float, seed: int) -> dict:
 
 
 def parse_options(items) -> dict:
-    """``["memory=32", ...]`` as keyword arguments of :func:`newton`, checked against its
-    signature (a misspelt name is refused, not ignored)."""
-    allowed = [name for name, par in inspect.signature(newton).parameters.items()
-               if par.kind is inspect.Parameter.KEYWORD_ONLY]
+    """``["memory=32", ...]`` as fields of :class:`NewtonOptions`, checked against them (a
+    misspelt name is refused, not ignored)."""
+    allowed = [f.name for f in dataclasses.fields(NewtonOptions)]
     options = {}
     for item in items or ():
         key, sep, text = item.partition("=")
@@ -109,8 +110,8 @@ def parse_options(items) -> dict:
 
 @contextlib.contextmanager
 def newton_options(options: dict):
-    """Within it, every minimization of the protocol gets ``options`` (keyword arguments of
-    :func:`newton`) on top of its own."""
+    """Within it, every minimization of the protocol gets ``options`` (fields of
+    :class:`NewtonOptions`, as keywords of Newton's method) on top of its own."""
     inner = protocol_mod.minimize
 
     def minimize(*args, **kwargs):
@@ -125,14 +126,17 @@ def newton_options(options: dict):
 
 def replay(mesh, traj: dict, every: int, per_step: bool) -> dict:
     ctx, _ = _context(mesh, float(traj["gamma"]), int(traj["seed"]))
-    counts = ctx.solver.counts
+    counts = ctx.workspace.solver.counts
     steps = range(1, len(traj["X"]), every)
     wall = cpu = 0.0
     its, same, rel = [], [], []
+    certify_single = True  # the choice the last replayed step leaves, as in a run
     for k in steps:
         t, c = time.perf_counter(), time.process_time()
         before = dict(counts)
-        _, record = protocol_mod.step(ctx, State(step=k - 1, X=traj["X"][k - 1]))
+        start = State(step=k - 1, X=traj["X"][k - 1], certify_single=certify_single)
+        after, record = protocol_mod.step(ctx, start)
+        certify_single = after.certify_single
         dc, dt = time.process_time() - c, time.perf_counter() - t
         wall, cpu = wall + dt, cpu + dc
         its.append(record["iterations"])

@@ -386,9 +386,8 @@ def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress:
             record = protocol_mod.measure(ctx, state.X, 0.0)
             store.append_step(0, state.X, record)
         else:
-            state = State(step=last, X=store.positions(last))
             record = store.record(last)
-            protocol_mod.continue_after(ctx, record)
+            state = protocol_mod.state_after(last, store.positions(last), record)
             if record.get("self_intersecting") and protocol.stop_at_contact:
                 state = State(step=last, X=state.X, stopped="self-intersection")
             elif last >= len(protocol.schedule):

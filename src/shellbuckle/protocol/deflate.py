@@ -54,10 +54,12 @@ from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..solve import minimize
-from ..solve.linear import check_mode, check_threads, default_threads, make_solver
+from ..solve.gauge import pinned_dofs
+from ..solve.linear import check_mode, check_threads, default_threads
 from ..solve.linesearch import RestoredPath
-from ..solve.newton import ABANDONED, pinned_dofs
+from ..solve.newton import ABANDONED
 from ..solve.pressure import minimize_at_pressure
+from ..solve.workspace import Workspace
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
                      step_rng)
 from .schedule import PAPER_DV, check_schedule, linear_schedule
@@ -236,11 +238,19 @@ def _check_parameter_path(control: str, schedule, fixed) -> np.ndarray:
 
 @dataclass(frozen=True)
 class State:
-    """Where a run is: the last finished step and its positions; ``stopped`` says why it ended."""
+    """Where a run is: the last finished step and its positions; ``stopped`` says why it ended;
+    ``certify_single``: whether the next step's minimizations try to show their minimum
+    positive definite with a single-precision factorization first (Newton's
+    ``certify_single``; :mod:`shellbuckle.solve.newton`, "Single-precision certificates"). True
+    at the start of a run, then whether the last step's minimum was certified so (its record's
+    ``certificate``, :func:`state_after`): where a certificate needed double precision (soft
+    modes after buckling, or a stiff shell on a fine mesh), the next one will too, and a
+    single-precision try would only cost a factorization more."""
 
     step: int
     X: np.ndarray
     stopped: str | None = None
+    certify_single: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,36 +264,25 @@ class Context:
     volume: Volume
     V0: float
     contact: ContactChecker
-    solver: object
+    workspace: Workspace
+    """The linear solver, KKT assemblers and held factorizations of the run's minimizations
+    (:class:`~shellbuckle.solve.workspace.Workspace`); its ``kept`` token is the factorization
+    the last step's final minimization ended with, which a smooth start of the next step uses
+    if the solver still holds it and it was made at exactly that step's start. A cache, never
+    stored: without it Newton's method factors the same matrix, with the same bits."""
     c0: float = field(default=2.0)
     pinned: np.ndarray | None = None
     """The six dofs that fix the rigid-motion gauge of every minimization of the run (chosen on
-    the reference mesh, :func:`~shellbuckle.solve.newton.pinned_dofs`)."""
-    held: dict = field(default_factory=dict, compare=False, repr=False)
-    """The factorization that the last step's final minimization ended with
-    (``held["token"]``), which the linear solver may still hold: a smooth start of the next
-    step uses it if it was made at exactly that step's start (:func:`step`). A cache, never
-    stored: without it Newton's method factors the same matrix. And whether the next step's
-    minimizations try a single-precision certificate (``held[SINGLE_CERTIFICATE]``, see
-    :func:`continue_after`)."""
+    the reference mesh, :func:`~shellbuckle.solve.gauge.pinned_dofs`)."""
 
 
-SINGLE_CERTIFICATE = "certify_single"
-"""Key of :attr:`Context.held`: whether the minimizations of the next step try to show their
-minimum positive definite with a single-precision factorization first (Newton's
-``certify_single``; :mod:`shellbuckle.solve.newton`, "Single-precision certificates"). True
-at the start of a run, then whether the last step's minimum was certified so (its record's
-``certificate``): where a certificate needed double precision (soft modes after buckling,
-or a stiff shell on a fine mesh), the next one will too, and a single-precision try would
-only cost a factorization more."""
-
-
-def continue_after(ctx: Context, record: dict) -> None:
-    """Set up ``ctx`` to go on after the step whose record is ``record``: the choice of
-    certificate for the next step (:data:`SINGLE_CERTIFICATE`). :func:`step` calls it on the
-    record it made and a resumed run on the stored one, so that both make the same choice and
-    the resumed run factors the same matrices in the same precision."""
-    ctx.held[SINGLE_CERTIFICATE] = record.get("certificate", "single") == "single"
+def state_after(step: int, X: np.ndarray, record: dict, stopped: str | None = None) -> State:
+    """The state after the step ``step`` whose positions are ``X`` and record ``record``, with
+    the choice of certificate for the next step (:attr:`State.certify_single`). :func:`step`
+    makes its state with it and a resumed run from the stored record, so that both make the
+    same choice and the resumed run factors the same matrices in the same precision."""
+    return State(step=step, X=X, stopped=stopped,
+                 certify_single=record.get("certificate", "single") == "single")
 
 
 @one_blas_thread
@@ -311,7 +310,7 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
                          "be oriented outward")
     ctx = Context(mesh=mesh, params=params, protocol=protocol, energy=energy, volume=volume,
                   V0=V0, contact=ContactChecker(mesh.topology),
-                  solver=make_solver(threads=threads, reproducible=reproducible),
+                  workspace=Workspace(threads=threads, reproducible=reproducible),
                   c0=c0,
                   pinned=pinned_dofs(mesh.X))
     return ctx, State(step=0, X=np.array(mesh.X, float))
@@ -378,7 +377,7 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 
 
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
-              certify: bool = True, relaxed_token=None):
+              certify: bool = True, relaxed_token=None, certify_single: bool = True):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
@@ -388,18 +387,19 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     ``certify=False``: Newton's method stops without factoring to certify the minimum (the
     c0 = 0 stage of the cycle, whose minimum is neither reported nor kept); ``relaxed_token``,
     the factorization the minimization that ended at ``relaxed`` ended with (Newton's
-    ``precondition_token``, for a start without a jiggle)."""
+    ``precondition_token``, for a start without a jiggle); ``certify_single``, Newton's option
+    (:attr:`State.certify_single`)."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
-                                    max_iter=p.max_iter, solver=ctx.solver)
+                                    max_iter=p.max_iter, solver=ctx.workspace.solver)
     options = {}
     if p.method in ("newton", "alternate"):
         # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
         hinges = ctx.mesh.topology.hinges
-        options = {"solver": ctx.solver, "pinned": ctx.pinned, "certify": certify,
-                   "certify_single": ctx.held.get(SINGLE_CERTIFICATE, True),
+        options = {"workspace": ctx.workspace, "pinned": ctx.pinned, "certify": certify,
+                   "certify_single": certify_single,
                    "abandon": lambda X: folded_flat(X, hinges),
                    "abandon_thorough": lambda X: (folded_flat(X, hinges)
                                                or folded_locally(ctx.contact, X))}
@@ -536,7 +536,8 @@ def step(ctx: Context, state: State):
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
         X = jiggle(state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
-                           relaxed_token=ctx.held.get("token"))
+                           relaxed_token=ctx.workspace.kept,
+                           certify_single=state.certify_single)
         iterations += result.nit
         E_before = result.fun
         # a minimization that gave up on a fold or a tangle is jiggled again at once; one that
@@ -546,7 +547,8 @@ def step(ctx: Context, state: State):
         if p.c0_cycle and not again:
             # the flat minimum is a waypoint (neither reported nor kept): not certified
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
-                             relaxed=result.x, warm=(result,), certify=False)
+                             relaxed=result.x, warm=(result,), certify=False,
+                             certify_single=state.certify_single)
             # back at c0 = 2/R: from the minimum before the cycle if the way there is downhill
             # (it is where the shell returns; its factorization, which the linear solver
             # keeps, certifies it at once), else from the flat minimum, starting with that
@@ -557,7 +559,7 @@ def step(ctx: Context, state: State):
                     and downhill_path(ctx.energy, ctx.volume, flat.x, result.x, V_target)):
                 start = result.x
             result = _minimize(ctx, ctx.energy, start, V_target, pressure, relaxed=flat.x,
-                               warm=(result, flat))
+                               warm=(result, flat), certify_single=state.certify_single)
             iterations += flat.nit + result.nit
             again = attempt < retries and _start_again(ctx, result, V_target, state.X)
         if attempt == retries:
@@ -578,7 +580,7 @@ def step(ctx: Context, state: State):
         log.warning("step %d: %s after a jiggle of std %.3g; jiggling again with half of it",
                     k, why, sigma)
         sigma *= 0.5
-    ctx.held["token"] = result.factorization
+    ctx.workspace.kept = result.factorization
     if not result.success:
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
@@ -587,7 +589,6 @@ def step(ctx: Context, state: State):
     record["jiggle_sigma"] = float(sigma)
     record["jiggle_attempts"] = attempt + 1
     record["certificate"] = result.certificate or "none"  # (methods other than Newton: none)
-    continue_after(ctx, record)
     if p.control in PARAMETER_CONTROLS:
         record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:
@@ -597,4 +598,4 @@ def step(ctx: Context, state: State):
         stopped = f"self-intersection at step {k} (dV/V = {record['dV_over_V']:.4f})"
     elif k == len(p.schedule):
         stopped = f"end of the schedule (dV/V = {record['dV_over_V']:.4f})"
-    return State(step=k, X=result.x, stopped=stopped), record
+    return state_after(k, result.x, record, stopped), record

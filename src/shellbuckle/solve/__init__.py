@@ -10,11 +10,13 @@ from .cg import conjugate_gradient, gradient_descent
 from .linear import QDLDLSolver, SingularFactorError, SuperLUSolver, make_solver
 from .linesearch import projected_gradient, restore_volume
 from .newton import newton
+from .options import NewtonOptions
 from .result import MinimizeResult
+from .workspace import Workspace
 
-__all__ = ["MinimizeResult", "QDLDLSolver", "SingularFactorError", "SuperLUSolver",
-           "conjugate_gradient", "gradient_descent", "make_solver", "minimize", "newton",
-           "projected_gradient", "restore_volume"]
+__all__ = ["MinimizeResult", "NewtonOptions", "QDLDLSolver", "SingularFactorError",
+           "SuperLUSolver", "Workspace", "conjugate_gradient", "gradient_descent",
+           "make_solver", "minimize", "newton", "projected_gradient", "restore_volume"]
 
 METHODS = ("newton", "cg", "gd", "alternate")
 
@@ -27,7 +29,9 @@ def minimize(energy, volume, X0, V_target, method: str = "newton", *, tol: float
     (:func:`gradient_descent`), or ``"alternate"``: ``cg_iter`` conjugate-gradient iterations
     (options ``cg_options``) to relax cheaply, then Newton to convergence (the paper
     alternated Surface Evolver's gradient and Hessian steps). ``options`` go to the chosen
-    method (to Newton for ``"alternate"``); ``tol`` is a shorthand for ``tol_grad``.
+    method (to Newton for ``"alternate"``: its inputs, ``options=`` a
+    :class:`~.options.NewtonOptions`, ``workspace=``, or fields of it as keywords); ``tol`` is
+    a shorthand for ``tol_grad``.
     """
     if tol is not None:
         options["tol_grad"] = tol

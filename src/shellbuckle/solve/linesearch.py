@@ -213,6 +213,29 @@ def curvature_search(phi, E0: float, slope: float, curvature: float, alpha0: flo
     return best
 
 
+def quasi_newton_search(energy, volume, X, V_target, E, r_norm, p, slope, max_step):
+    """Armijo backtracking along a quasi-Newton step ``p`` (slope ``slope = r.p``), its first
+    trial capped at ``max_step`` of vertex displacement; below the energy noise
+    (``-slope <= ENERGY_NOISE |E|``) the full step is taken if the energy stays within the noise
+    and the projected gradient falls below ``r_norm`` (module docstring). ``(alpha, E, X)`` or
+    ``None``."""
+    alpha0 = min(1.0, max_step / max(max_displacement(p), np.finfo(float).tiny))
+    path = RestoredPath(energy, volume, X, p, V_target)
+    noise = ENERGY_NOISE * abs(E)
+    if -slope > noise:
+        return backtracking(path, E, slope, alpha0)
+    E1, X1 = path(alpha0)
+    if X1 is not None and E1 <= E + noise:
+        if np.linalg.norm(projected_gradient(energy.gradient(X1), volume.gradient(X1))[1]) < r_norm:
+            return alpha0, E1, X1
+    return None
+
+
+def max_displacement(p: np.ndarray) -> float:
+    """The largest vertex displacement ``max_i |p_i|`` of ``p (V, 3)``."""
+    return float(np.sqrt(np.einsum("ij,ij->i", p, p).max()))
+
+
 def projected_gradient(gE: np.ndarray, gV: np.ndarray) -> tuple[float, np.ndarray]:
     """Least-squares multiplier ``lam = (gE . gV) / |gV|^2`` and ``r = gE - lam gV``.
 

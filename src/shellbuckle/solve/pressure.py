@@ -8,7 +8,7 @@ convention (``-dE/dV``). Beyond the buckling pressure no nearby minimum exists a
 snaps through; the minimizer then follows the collapse until ``max_iter``.
 
 Method: Newton on ``G`` with the six rigid-motion dofs pinned (as in
-:mod:`~shellbuckle.solve.newton`), the inertia of the Hessian read from its ``L D L^T``
+:mod:`~shellbuckle.solve.gauge`), the inertia of the Hessian read from its ``L D L^T``
 factorization, a Levenberg–Marquardt shift ``mu I`` increased until the shifted Hessian is
 positive definite when it is not, and Armijo backtracking on ``G``. Convergence:
 ``|grad G| <= tol_grad |grad E| + atol_grad`` and inertia 0.
@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from .linear import SingularFactorError, make_solver
 from .linesearch import backtracking
-from .newton import pinned_dofs
+from .gauge import pinned_dofs
 from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
