@@ -10,7 +10,7 @@ energy, it times the parts of a minimization that are not the factorization itse
 each one written more cheaply, the NumPy form it replaced, recomputed here, and whether the two
 give the same bits:
 
-- the KKT assembly (:class:`shellbuckle.solve.newton.KKTAssembler`: each term scattered into
+- the KKT assembly (:class:`shellbuckle.solve.kkt.KKTAssembler`: each term scattered into
   the KKT data by one compiled pass, against NumPy's ``data[slot] += c * M.data[keep]``);
 - the test that the six pinned dofs still fix the rigid motions (the six rows of the rigid
   modes it needs, against the whole ``(3V, 6)`` array) and the free dofs (a mask, against
@@ -19,8 +19,8 @@ give the same bits:
 - the mean edge length of the minimizers (one compiled pass over the face sides, against
   NumPy's ``norm``), four calls per volume step;
 - PARDISO's analysis of the KKT pattern in single precision: with METIS, and with the ordering
-  of an earlier analysis of the same pattern (what the double-precision solver and later runs
-  on the same mesh now do; the factors are the same bits);
+  of an earlier analysis of the same pattern (what the double-precision solver of the same
+  workspace now does; the factors are the same bits);
 - PARDISO's factorizations and solves on one thread in its plain mode (the default there)
   against its reproducible mode (the default on several threads), for the three kinds of
   factorization Newton's method makes;
@@ -49,8 +49,9 @@ from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.solve import linear  # noqa: E402
 from shellbuckle.solve.linesearch import mean_edge_length  # noqa: E402
-from shellbuckle.solve.newton import (GAUGE_MAX_COND, _fixes_gauge, kkt_assembler,  # noqa: E402
-                                      pinned_dofs, rigid_modes)
+from shellbuckle.solve.gauge import fixes_gauge, pinned_dofs, rigid_modes  # noqa: E402
+from shellbuckle.solve.kkt import KKTAssembler  # noqa: E402
+from shellbuckle.solve.options import NewtonOptions  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import describe, median_ms, reference, reference_line  # noqa: E402  (machine.py)
@@ -74,7 +75,8 @@ def numpy_fixes_gauge(X, pinned) -> bool:
     """The gauge test with the whole ``(3V, 6)`` array of rigid modes."""
     modes = rigid_modes(X)
     cond = np.linalg.cond(modes[pinned])
-    return bool(cond <= GAUGE_MAX_COND or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
+    max_cond = NewtonOptions().gauge_max_cond
+    return bool(cond <= max_cond or cond <= 2.0 * np.linalg.cond(modes[pinned_dofs(X)]))
 
 
 def numpy_mean_edge_length(faces, X) -> float:
@@ -105,7 +107,7 @@ def main(argv=None) -> int:
     free = np.flatnonzero(mask)
     g = volume.gradient(X)
     terms = [(H, 1.0) for H in energy.hessian_terms(X)] + [(volume.hessian(X), -10.0)]
-    kkt = kkt_assembler(free, X.size)
+    kkt = KKTAssembler(free, X.size)
     kkt.build(terms, g)  # the pattern analysis, once per mesh
 
     def free_dofs():
@@ -116,7 +118,7 @@ def main(argv=None) -> int:
     rows = [
         ("KKT assembly (terms scattered)", lambda: kkt.build(terms, g),
          lambda: numpy_kkt_build(kkt, terms, g), np.array_equal),
-        ("gauge test (pinned dofs)", lambda: _fixes_gauge(X, pinned),
+        ("gauge test (pinned dofs)", lambda: fixes_gauge(X, pinned),
          lambda: numpy_fixes_gauge(X, pinned), lambda a, b: a == b),
         ("free dofs", free_dofs,
          lambda: np.setdiff1d(np.arange(X.size), pinned), np.array_equal),
@@ -142,10 +144,12 @@ def main(argv=None) -> int:
     upper = kkt.matrix(data, 1e-3 * float(np.abs(kkt.diagonal(data)).mean()))
     b = np.random.default_rng(1).standard_normal(upper.shape[0])
 
+    orderings = linear.Recent(8)  # of the analyses below, by pattern
+
     def analyse(known: bool):
         if not known:
-            linear._ORDERINGS.clear()
-        solver = linear.PardisoSolver(1, "single", refinement=0)
+            orderings.clear()
+        solver = linear.PardisoSolver(1, "single", refinement=0, orderings=orderings)
         solver._pattern, solver._n = upper, upper.shape[0]
         err = solver._analyse(np.ascontiguousarray(upper.data, dtype=np.float32))
         solver._release()
@@ -155,8 +159,8 @@ def main(argv=None) -> int:
     repeat = max(3, args.repeat // 5)
     t_metis = process_ms(lambda: analyse(False), repeat)
     t_known = process_ms(lambda: analyse(True), repeat)
-    fresh, reused = linear.PardisoSolver(1), linear.PardisoSolver(1)
-    linear._ORDERINGS.clear()
+    fresh = linear.PardisoSolver(1)
+    reused = linear.PardisoSolver(1, orderings=fresh.orderings)
     fresh.factor(upper, upper=True)
     reused.factor(upper, upper=True)  # its analysis was given fresh's ordering
     same = np.array_equal(fresh.solve(b), reused.solve(b))

@@ -258,8 +258,9 @@ def test_pardiso_solves_each_held_approximate_factorization_with_its_own_pivotin
 
 @pytest.mark.skipif(_load_mkl() is None, reason="Intel MKL not installed")
 def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch):
-    from shellbuckle.solve import linear
-
+    # a solver keeps the orderings of the patterns it has analysed (shared with its
+    # single-precision twin, or given to another solver); nothing is kept between solvers
+    # otherwise. Oracle: a fresh solver's solve, bitwise
     A = _shell_like_matrix(30)
     B = A.copy()
     B.data = B.data * (1.0 + 0.1 * np.cos(np.arange(B.nnz)))  # same pattern, other values
@@ -274,16 +275,17 @@ def test_pardiso_reuses_the_ordering_of_a_pattern_with_the_same_bits(monkeypatch
         return real_call(self, phase, *args, **kwargs)
 
     monkeypatch.setattr(PardisoSolver, "_call", call)
-    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
     fresh = PardisoSolver(n_threads=1)
     fresh.factor(B)
-    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
-    first, second = PardisoSolver(n_threads=1), PardisoSolver(n_threads=1)
+    first = PardisoSolver(n_threads=1)
+    second = PardisoSolver(n_threads=1, orderings=first.orderings)
     first.factor(A)
     second.factor(B)
     second.factor(B, approximate=True)  # the single-precision twin: the same ordering
-    assert analyses == [2, 2, 1, 1]
-    assert second.n_symbolic == 1 and len(linear._ORDERINGS) == 1
+    PardisoSolver(n_threads=1).factor(B)  # its own orderings: METIS again
+    assert analyses == [2, 2, 1, 1, 2]
+    assert second.n_symbolic == 1 and len(first.orderings) == 1
+    assert second.orderings is first.orderings
     second.activate(("double", second._slot, second._serial[second._slot]))
     x = second.solve(b)
     assert np.array_equal(x, fresh.solve(b))  # bitwise: the ordering is METIS's, reused
@@ -297,8 +299,6 @@ def test_pardiso_orders_a_dense_constraint_row_last_and_the_rest_without_it(monk
     """A KKT matrix's constraint row reaches every other row: METIS orders the rest alone,
     the dense row is eliminated last, and the factorization is that of the matrix (inertia
     of the tangent Hessian plus the constraint's (1, 1), solves to round-off)."""
-    from shellbuckle.solve import linear
-
     K = _shell_like_matrix(12) + 0.3 * sp.identity(432)
     g = np.random.default_rng(2).standard_normal(432)
     kkt = sp.bmat([[K, sp.csr_matrix(g[:, None])], [sp.csr_matrix(g[None, :]), None]],
@@ -315,7 +315,6 @@ def test_pardiso_orders_a_dense_constraint_row_last_and_the_rest_without_it(monk
         return err
 
     monkeypatch.setattr(PardisoSolver, "_call", call)
-    monkeypatch.setattr(linear, "_ORDERINGS", linear.Recent(8))
     solver = PardisoSolver(n_threads=1)
     solver.factor(kkt)
     assert sizes == [432, 433]  # METIS on the rest, then the analysis with that ordering

@@ -64,11 +64,11 @@ factorization takes about 1.3 GFlop. The constraint's row and column of a KKT ma
 every other row: such dense rows (AMD's rule, more than ``10 sqrt(n)`` entries) are left out
 of the graph METIS orders and eliminated last, which halves PARDISO's analysis of that
 matrix (METIS with the dense row took about two thirds of it) and saves 0.6 % of the
-factorization's flops. The last few orderings are kept by pattern (a digest of the index
-arrays) and given to any later analysis of the same pattern (``iparm[4] = 1``), so that a run
-pays for one once for its two precisions, and later runs on the same mesh in the same process
-(a sweep's worker, a notebook) not at all; the factors are bitwise those of the first
-analysis.
+factorization's flops. A solver keeps the last few orderings by pattern (a digest of the
+index arrays; ``orderings``, shared with its single-precision twin) and gives them to any later
+analysis of the same pattern (``iparm[4] = 1``), so that a run pays for one once for its two
+precisions; a solver made with another's ``orderings`` reuses them too. The factors are
+bitwise those of the first analysis.
 
 PARDISO runs in one of two modes (``reproducible``). On several threads it runs in its
 conditional-numerical-reproducibility mode (``iparm[33] = 1``), so its results are bitwise the
@@ -269,13 +269,9 @@ def _load_mkl():
     return None
 
 
-_ORDERINGS = Recent(8)
-"""Pattern key (:func:`_pattern_key`) -> PARDISO's ``perm`` of METIS's ordering of it."""
-
-
 def _pattern_key(upper) -> tuple:
     """A key of the sparsity pattern of a CSR matrix (its shape and a digest of its index
-    arrays), for :data:`_ORDERINGS`."""
+    arrays), for :attr:`PardisoSolver.orderings`."""
     digest = hashlib.blake2b(np.ascontiguousarray(upper.indptr).view(np.uint8), digest_size=16)
     digest.update(np.ascontiguousarray(upper.indices).view(np.uint8))
     return upper.shape, upper.nnz, digest.hexdigest()
@@ -291,7 +287,7 @@ class PardisoSolver:
 
     def __init__(self, n_threads: int | None = None, precision: str = "double",
                  refinement: int = 2, diagonal_pivoting: bool = False,
-                 reproducible: bool | None = None):
+                 reproducible: bool | None = None, orderings: Recent | None = None):
         import ctypes
 
         if precision not in ("double", "single"):
@@ -323,6 +319,9 @@ class PardisoSolver:
         self.n_symbolic = 0
         self.n_numeric = 0
         self._approximate = None  # single-precision twin for factor(..., approximate=True)
+        # pattern key (_pattern_key) -> PARDISO's perm of METIS's ordering of it, shared with
+        # the twin: the orderings of the patterns this solver has analysed
+        self.orderings = Recent(8) if orderings is None else orderings
         self._active = self
         # two numeric factorizations of one pattern (PARDISO's maxfct = 2, mnum = slot + 1):
         # each factorization overwrites the older one, so the previous one can still be used
@@ -380,7 +379,8 @@ class PardisoSolver:
             if self._approximate is None:
                 self._approximate = PardisoSolver(self.n_threads, "single", refinement=0,
                                                   diagonal_pivoting=True,
-                                                  reproducible=self.reproducible)
+                                                  reproducible=self.reproducible,
+                                                  orderings=self.orderings)
             self._active = self._approximate
             self._approximate.factor(A, upper, stable_pivots=stable_pivots)
             return
@@ -433,19 +433,19 @@ class PardisoSolver:
 
     def _analyse(self, data) -> int:
         """PARDISO's analysis (phase 11) of ``self._pattern``, with the fill-reducing ordering
-        of an earlier analysis of the same pattern if :data:`_ORDERINGS` holds one (METIS is
+        of an earlier analysis of the same pattern if :attr:`orderings` holds one (METIS is
         then skipped), else :meth:`_ordering`'s, which is kept there."""
         key = _pattern_key(self._pattern)
-        perm = _ORDERINGS.get(key)
+        perm = self.orderings.get(key)
         if perm is None:
             perm = self._ordering(data)
             if perm is None:  # no dense row: METIS's ordering of the whole, from this analysis
                 perm = np.zeros(self._n, dtype=np.int32)
                 err = self._analyse_ordering(data, perm, given=False)
                 if not err:
-                    _ORDERINGS.put(key, perm)
+                    self.orderings.put(key, perm)
                 return err
-            _ORDERINGS.put(key, perm)
+            self.orderings.put(key, perm)
         return self._analyse_ordering(data, perm.copy(), given=True)
 
     def _analyse_ordering(self, data, perm: np.ndarray, given: bool) -> int:

@@ -1,9 +1,9 @@
 """A small thread-safe map of the most recently used entries, for the solvers' caches.
 
-The linear solver keeps the fill-reducing orderings of the last few sparsity patterns, and
-Newton's method the last KKT assemblers and the last factorization given to each solver; a
-Dask worker with several threads may run several runs at once in one process, so each map
-takes a lock around every access.
+A PARDISO solver keeps the fill-reducing orderings of the last few sparsity patterns it has
+analysed, and a :class:`~.workspace.Workspace` the KKT assemblers of its last few gauges. Each
+map belongs to one solver or workspace; a lock around every access keeps one safe where a
+caller shares it between threads.
 """
 
 from __future__ import annotations
