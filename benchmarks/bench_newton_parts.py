@@ -47,11 +47,12 @@ from shellbuckle.energies.total import ShellEnergy  # noqa: E402
 from shellbuckle.energies.volume import Volume  # noqa: E402
 from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 from shellbuckle.params import ShellParameters  # noqa: E402
-from shellbuckle.solve import linear  # noqa: E402
+from shellbuckle.solve import linear, pardiso  # noqa: E402
 from shellbuckle.solve.linesearch import mean_edge_length  # noqa: E402
 from shellbuckle.solve.gauge import fixes_gauge, pinned_dofs, rigid_modes  # noqa: E402
 from shellbuckle.solve.kkt import KKTAssembler  # noqa: E402
 from shellbuckle.solve.options import NewtonOptions  # noqa: E402
+from shellbuckle.solve.recent import Recent  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import describe, median_ms, reference, reference_line  # noqa: E402  (machine.py)
@@ -144,12 +145,12 @@ def main(argv=None) -> int:
     upper = kkt.matrix(data, 1e-3 * float(np.abs(kkt.diagonal(data)).mean()))
     b = np.random.default_rng(1).standard_normal(upper.shape[0])
 
-    orderings = linear.Recent(8)  # of the analyses below, by pattern
+    orderings = Recent(8)  # of the analyses below, by pattern
 
     def analyse(known: bool):
         if not known:
             orderings.clear()
-        solver = linear.PardisoSolver(1, "single", refinement=0, orderings=orderings)
+        solver = pardiso.PardisoSolver(1, "single", refinement=0, orderings=orderings)
         solver._pattern, solver._n = upper, upper.shape[0]
         err = solver._analyse(np.ascontiguousarray(upper.data, dtype=np.float32))
         solver._release()
@@ -159,14 +160,14 @@ def main(argv=None) -> int:
     repeat = max(3, args.repeat // 5)
     t_metis = process_ms(lambda: analyse(False), repeat)
     t_known = process_ms(lambda: analyse(True), repeat)
-    fresh = linear.PardisoSolver(1)
-    reused = linear.PardisoSolver(1, orderings=fresh.orderings)
+    fresh = pardiso.PardisoSolver(1)
+    reused = pardiso.PardisoSolver(1, orderings=fresh.orderings)
     fresh.factor(upper, upper=True)
     reused.factor(upper, upper=True)  # its analysis was given fresh's ordering
     same = np.array_equal(fresh.solve(b), reused.solve(b))
     print(f"{'PARDISO analysis, known ordering':<34} {t_known:>9.3f} {t_metis:>14.3f} "
           f"{'yes' if same else 'NO':>9}   (NumPy form: with METIS)")
-    single = linear.PardisoSolver(1, "single", refinement=0)
+    single = pardiso.PardisoSolver(1, "single", refinement=0)
     single.factor(upper, upper=True)
     t_factor = process_ms(lambda: single.factor(upper, upper=True), repeat)
     print(f"{'single-precision factorization':<34} {t_factor:>9.3f}")
@@ -191,7 +192,7 @@ def pardiso_modes(upper, b, repeat_factor: int, repeat_solve: int) -> None:
     for label, precision, diagonal in kinds:
         row = []
         for reproducible in (False, True):
-            solver = linear.PardisoSolver(1, precision, refinement=0, diagonal_pivoting=diagonal,
+            solver = pardiso.PardisoSolver(1, precision, refinement=0, diagonal_pivoting=diagonal,
                                           reproducible=reproducible)
             solver.factor(upper, upper=True)
             row.append((process_ms(lambda: solver.factor(upper, upper=True), repeat_factor),

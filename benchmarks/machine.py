@@ -113,7 +113,8 @@ def _reference_here(repeat: int) -> dict:
     from shellbuckle.energies.total import ShellEnergy
     from shellbuckle.mesh.random_sphere import random_sphere
     from shellbuckle.params import ShellParameters
-    from shellbuckle.solve.linear import PardisoSolver, _load_mkl
+    from shellbuckle.solve.linear import _load_mkl
+    from shellbuckle.solve.pardiso import PardisoSolver
 
     mesh = random_sphere(REFERENCE_VERTICES, seed=0)
     energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(REFERENCE_GAMMA, nu=1.0 / 3.0))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from shellbuckle.solve.linear import (PardisoSolver, QDLDLSolver, SingularFactorError,
-                                      SuperLUSolver, _load_mkl, check_threads, default_threads,
-                                      make_solver)
+from shellbuckle.solve.linear import (QDLDLSolver, SingularFactorError, SuperLUSolver, _load_mkl,
+                                      check_threads, default_threads, make_solver)
+from shellbuckle.solve.pardiso import PardisoSolver
 
 BACKENDS = [QDLDLSolver, SuperLUSolver,
             pytest.param(PardisoSolver, marks=pytest.mark.skipif(_load_mkl() is None,

@@ -6,11 +6,10 @@
 from the newest pair to the oldest (``a_i = rho_i s_i . q``, ``q -= a_i y_i``), ``H0`` is
 applied to ``q``, and the second loop runs back (``z += (a_i - rho_i y_i . z) s_i``).
 
-Newton's method (:mod:`.newton`) uses a factorization of the KKT matrix as ``H0``; the
-loops around it are 4 m passes over vectors of ``3V`` numbers. Written with NumPy they
-allocated a temporary per pass and took 0.9 ms for 16 pairs on the paper's 3594-vertex mesh,
-about a third of the linear solve they surround; here the pairs live in preallocated rows and
-the loops update in place (0.25 ms). Sums run in index order: reproducible bits.
+Newton's method (:mod:`.newton`, :mod:`.relax`) uses a factorization of the KKT matrix as
+``H0``; the loops around it are 4 m passes over vectors of ``3V`` numbers. The pairs live in
+preallocated rows and the loops update in place, without a temporary per pass. Sums run in
+index order: reproducible bits.
 """
 
 from __future__ import annotations
