@@ -20,9 +20,9 @@ last assembled point (kept as its terms, :mod:`.kkt`) and the factorization in u
 - a single-precision certificate: inertia 0 of a single-precision factorization of the KKT
   matrix with ``K`` shifted down by ``sigma``, whose computed factors are those of
   ``K - sigma I + E`` with a backward error ``|E|`` of the order of the single-precision
-  round-off times ``|K|`` (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed.,
-  §10.4), shows ``K`` positive definite on the tangent space while ``|E| < sigma``
-  (:meth:`KKTSystem.certify_single`).
+  round-off times ``|K|`` (for small growth; Higham, *Accuracy and Stability of Numerical
+  Algorithms*, 2nd ed., ch. 11), shows ``K`` positive definite on the tangent space while
+  ``|E| < sigma`` (:meth:`KKTSystem.certify_single`).
 
 Every direction is taken without its rigid-motion part (:func:`~.gauge.remove_rigid`).
 """
