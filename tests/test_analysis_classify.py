@@ -153,7 +153,7 @@ WRINKLE_SAGITTA = 0.04
 #: count is m; from WRINKLE_EDGES a wrinkled bowl is also recognised as wrinkled. Below, the
 #: classifier may say `capsule` or `other` (count_resolved False), never another count.
 COUNT_EDGES = 6.5
-WRINKLE_EDGES = 9.0
+WRINKLE_EDGES = 10.5
 
 
 def polygonal_dent(X, m, alpha, axis, phase):

@@ -389,7 +389,10 @@ def describe(X, faces) -> dict:
     ``dimple_areas``, ``dent_axis``, ``dent_centre``, ``dent_depth``, ``dent_sagitta``,
     ``crest_radius``, ``crest_height``, ``crest_spectrum``, ``rim_radius``, ``rim_spectrum``
     (relative amplitudes of the modes ``m = 1..20`` of the outline of the depression),
-    ``rim_apices``, ``rim_concave_arcs``, ``rim_arc_curvature``, ``contact_distance``, ...
+    ``rim_apices``, ``rim_concave_arcs``, ``rim_arc_sagitta`` (how far each arc between two
+    apices dips inside their chord, relative to it), ``rim_apex_spacing`` (lengths along the
+    outline), ``rim_resolution`` (the smallest spacing counted), ``rim_count_resolved``,
+    ``rim_arc_curvature``, ``contact_distance``, ...
     """
     X = np.asarray(X, dtype=np.float64)
     return ShapeAnalyzer(faces, n_vertices=len(X)).describe(X).as_dict()
