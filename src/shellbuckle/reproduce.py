@@ -64,8 +64,8 @@ def potato_quench(n_vertices: int) -> dict:
     per minimization (``n_vertices / 12``, at least 40). Minimized to convergence, our shells
     merge the paper's depressions without the cycle too; a quench keeps them, as the paper's
     Surface Evolver scripts did. The budget was checked on 1200 (80-100 iterations) and 3594
-    (300) vertices: without the cycle 3-5 depressions persist past dV/V = 0.171, with it one
-    dent forms by 0.152-0.19 (tests/test_protocol.py, docs/protocol.md)."""
+    (300) vertices: without the cycle 3-5 depressions persist past dV/V = 0.171, with it fewer
+    remain, mostly one dent by 0.152-0.19 (tests/test_protocol.py, docs/protocol.md)."""
     return {"method": ("cg",), "max_iter": max(40, round(n_vertices / 12))}
 
 
