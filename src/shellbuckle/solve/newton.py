@@ -126,7 +126,6 @@ log = logging.getLogger(__name__)
 ABANDONED = "abandoned"
 """Start of the message of a minimization stopped by its ``abandon`` test."""
 
-_Newton = KKTSystem  # the former name of the system class (tests patch its certify_single)
 
 
 class Step(NamedTuple):
