@@ -5,10 +5,8 @@ measured thresholds are the same numbers at gammas four times smaller: the fitte
 the same and the prefactor is the standard one times 4^b (a power law a (4 gamma)^b).
 """
 
-import json
 import math
 
-import numpy as np
 import pytest
 
 from shellbuckle import convention_study as cs

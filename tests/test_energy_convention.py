@@ -94,6 +94,7 @@ def test_the_convention_is_stored_and_kept_by_resume(tmp_path):
     whole = deflate(mesh, params, until=0.076, seed=1, out=tmp_path / "whole", threads=1)
     part = deflate(mesh, params, until=0.076, seed=1, out=tmp_path / "part", threads=1,
                    max_steps=2)
+    assert part.params == params and len(part.steps) == 3  # steps 0, 1, 2: interrupted
     stored = json.loads((tmp_path / "part" / "run.json").read_text())
     assert stored["params"]["energy_convention"] == "evolver-modulus"
     assert stored["params"]["gamma_effective"] == pytest.approx(2 * GAMMA)

@@ -52,7 +52,6 @@ from ..energies.total import BENDING_KINDS, ShellEnergy
 from ..energies.volume import Volume
 from ..mesh.contact import ContactChecker
 from ..mesh.mesh import Mesh
-from ..params import ShellParameters
 from ..solve import minimize
 from ..solve.gauge import pinned_dofs
 from ..solve.linear import check_mode, check_threads, default_threads
