@@ -257,3 +257,29 @@ def test_reference_is_found_and_explicit_paths_checked(tmp_path, monkeypatch):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(ValueError, match="results"):
         load_reference(tmp_path / "bad.json")
+
+
+def test_analysis_stored_by_another_classifier_version_is_computed_again(tmp_path):
+    """A stored classification carries the classifier's version; one made by another version
+    is stale: the table is classified again and a sweep analyses the run again."""
+    from shellbuckle.analysis import analyze_run
+    from shellbuckle.analysis.classify import ANALYSIS_VERSION
+    from shellbuckle.analysis.collect import analysed_table
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import analysis_complete
+
+    run = deflate(icosphere(4), ShellParameters.from_gamma(271.0), schedule=[0.02, 0.04],
+                  out=tmp_path / "run", threads=1)
+    analyze_run(run)
+    assert analysis_complete(run.store)
+    assert analysed_table(run)[1] == "stored"
+    assert set(run.table["analysis_version"]) == {ANALYSIS_VERSION}
+    # an old analysis: a wrong shape, written without a version
+    stale = {k: {"shape": "wrinkled", "W": 9} for k in run.steps}
+    (tmp_path / "run" / "analysis.json").write_text(
+        __import__("json").dumps({str(k): v for k, v in stale.items()}))
+    assert not analysis_complete(run.store)
+    table, source = analysed_table(run)
+    assert source == "computed" and "wrinkled" not in set(table["shape"])

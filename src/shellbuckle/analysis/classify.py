@@ -173,6 +173,19 @@ def classify(X, faces) -> Classification:
 
 # ---------------------------------------------------------------------- runs
 
+#: Version of the classification, stored with every analysed step (``analysis_version``):
+#: analysis stored by another version is stale and computed again
+#: (:func:`is_current`). 1: stored without the column; 2: rim counts by the dip of each arc
+#: inside its chord, counts below the mesh's resolution refused (``count_resolved``).
+ANALYSIS_VERSION = 2
+
+
+def is_current(stored: dict | None) -> bool:
+    """Whether one step's stored analysis was made by this version of the classifier."""
+    return bool(stored) and "shape" in stored and \
+        stored.get("analysis_version") == ANALYSIS_VERSION
+
+
 #: Analysis columns written by :func:`analyze_run` (the first four are SPEC §7's).
 RUN_COLUMNS = ("shape", "n_dimples", "corners", "W", "dent_depth", "dent_sagitta",
                "rim_radius", "crest_radius", "rim_mode", "rim_amplitude", "concave_arcs",
@@ -221,6 +234,7 @@ def analyze_run(run_or_path, steps=None, progress: bool = False):
     """
     run = _open_run(run_or_path)
     results = classify_run(run, steps=steps, progress=progress)
-    run.store.update_analysis({k: {name: _clean(value) for name, value in c.columns().items()}
+    run.store.update_analysis({k: {**{name: _clean(value) for name, value in
+                                      c.columns().items()}, "analysis_version": ANALYSIS_VERSION}
                                for k, c in results.items()})
     return run.table

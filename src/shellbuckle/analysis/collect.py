@@ -100,16 +100,16 @@ def run_folders(paths) -> list[Path]:
 def analysed_table(run, *, store: bool = False) -> tuple[pd.DataFrame, str]:
     """The run's table with the analysis columns for every step, and where they came from
     (``"stored"``, ``"computed"``: classified now, or ``"stored now"`` with ``store=True``,
-    which writes them with :func:`shellbuckle.analysis.analyze_run`)."""
-    from .classify import analyze_run, classify_run
+    which writes them with :func:`shellbuckle.analysis.analyze_run`). A step analysed by
+    another version of the classifier counts as not analysed."""
+    from .classify import analyze_run, classify_run, is_current
 
     table = run.table
     if table.empty:
         return table, "none"
-    if "shape" in table.columns:
-        missing = [int(k) for k in table.loc[table["shape"].isna(), "step"]]
-    else:
-        missing = [int(k) for k in table["step"]]
+    stored = run.store.analysis()
+    # absent, or stored by another version of the classifier: classified again
+    missing = [int(k) for k in table["step"] if not is_current(stored.get(int(k)))]
     if not missing:
         return table, "stored"
     if store:

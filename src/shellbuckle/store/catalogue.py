@@ -202,10 +202,13 @@ def record_attempt(out_dir, name: str, attempt: dict, *, replace_last: bool = Fa
 # --------------------------------------------------------------------------- one row
 
 def analysis_complete(store: RunStore) -> bool:
-    """True if every finished step of the run has its stored ``shape`` classification."""
+    """True if every finished step of the run has its stored classification, made by the
+    current classifier (:data:`shellbuckle.analysis.classify.ANALYSIS_VERSION`)."""
+    from ..analysis.classify import is_current
+
     analysis = store.analysis()
     steps = store.steps
-    return bool(steps) and all("shape" in analysis.get(k, {}) for k in steps)
+    return bool(steps) and all(is_current(analysis.get(k)) for k in steps)
 
 
 def pressure_drop_dV_over_V(table: pd.DataFrame, drop: float = PRESSURE_DROP) -> float:
@@ -234,13 +237,19 @@ def stop_reason(status: str, message: str | None) -> str | None:
 
 
 def _analysis_columns(store: RunStore, table: pd.DataFrame) -> dict:
-    """Thresholds, W average and last shape from the stored analysis; {} if not analysed.
+    """Thresholds, W average and last shape from the stored analysis; {} if not analysed
+    (or analysed by another version of the classifier).
 
     Completeness is judged on ``table`` itself (one snapshot), not on a second read of the
     folder, which the worker may be writing meanwhile.
     """
     if "shape" not in table.columns or table["shape"].isna().any():
         return {}
+    versions = table["analysis_version"] if "analysis_version" in table else None
+    from ..analysis.classify import ANALYSIS_VERSION
+
+    if versions is None or (versions != ANALYSIS_VERSION).any():
+        return {}  # stored by another version of the classifier: stale
     try:
         from ..analysis import events
     except ImportError:  # pragma: no cover - analysis module absent
