@@ -574,6 +574,9 @@ def _register_classify(sub) -> None:
         print(f"  n_dimples   {c.n_dimples}")
         print(f"  corners     {c.corners}")
         print(f"  W           {c.W}")
+        if not getattr(c, "count_resolved", True):
+            print("  count       not resolved: the rim's corners are closer than the mesh "
+                  "resolves (docs/analysis.md, Resolution)")
         if c.dent_axis is not None:
             axis = ", ".join(f"{v:+.4f}" for v in c.dent_axis)
             print(f"  dent depth  {c.dent_depth:.6g}   (indentation along the axis; sagitta below "
