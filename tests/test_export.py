@@ -194,3 +194,39 @@ def test_cli_export(runs, tmp_path, monkeypatch, capsys):
     assert main(["export", str(run.path), "--step", "1", "--format", "gltf"]) == 2
     assert "allowed: vtk, vtu, ply, obj, stl, fe" in capsys.readouterr().err
     assert main(["export", str(tmp_path / "missing"), "--step", "1", "--format", "vtu"]) == 2
+
+
+def test_a_surface_evolver_file_keeps_its_bending_energy_by_default(tmp_path, capsys):
+    """deflate --mesh FILE.fe with no --bending bends with the file's own
+    star_perp_sq_mean_curvature: the stored step 0 has the energy Surface Evolver's quantities
+    give for the file (evolver-energy), not the Jülicher discretization's."""
+    from pathlib import Path
+
+    from shellbuckle.run import Run
+
+    fe = Path(__file__).parent / "fixtures" / "evolver" / "sphere_perturbed.fe"
+    own = evolver_energy(read_evolver(fe))
+    out = tmp_path / "run"
+    assert main(["deflate", "--mesh", str(fe), "--schedule", "0.01", "--out", str(out),
+                 "--no-plot", "--quiet", "--threads", "1"]) == 0
+    run = Run.open(out)
+    assert run.protocol.bending == "evolver"
+    assert run.table["E_bend"].iloc[0] == pytest.approx(own["E_bend"], rel=1e-10)
+    capsys.readouterr()
+    # an option still overrides the file
+    assert main(["deflate", "--mesh", str(fe), "--schedule", "0.01", "--bending", "juelicher",
+                 "--out", str(tmp_path / "j"), "--no-plot", "--quiet", "--threads", "1"]) == 0
+    assert Run.open(tmp_path / "j").protocol.bending == "juelicher"
+
+
+def test_a_surface_evolver_file_with_an_energy_we_do_not_model_is_refused(tmp_path, capsys):
+    from pathlib import Path
+
+    text = (Path(__file__).parent / "fixtures" / "evolver" / "sphere_perturbed.fe").read_text()
+    extra = "quantity gravity_like energy method sq_mean_curvature global\n"
+    bad = tmp_path / "bad.fe"
+    bad.write_text(extra + text)
+    assert main(["deflate", "--mesh", str(bad), "--out", str(tmp_path / "r"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "gravity_like" in err and "sq_mean_curvature" in err and "Traceback" not in err
+    assert not (tmp_path / "r").exists()

@@ -279,8 +279,10 @@ def _register_deflate(sub) -> None:
     proto.add_argument("--jiggle", type=float,
                        help="jiggle amplitude as a fraction of the mean edge length, instead of "
                             "--temperature")
-    proto.add_argument("--bending", choices=["juelicher", "evolver"], default="juelicher",
-                       help="bending discretization (default juelicher)")
+    proto.add_argument("--bending", choices=["juelicher", "evolver"], default=None,
+                       help="bending discretization (default juelicher; with a Surface Evolver "
+                            "--mesh file that bends with star_perp_sq_mean_curvature, evolver: "
+                            "the file's own energy)")
     proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"], default="newton",
                        help="minimizer (default newton)")
     proto.add_argument("--max-iter", type=int, default=DEFAULT_MAX_ITER,
@@ -348,7 +350,7 @@ def _cmd_deflate(args) -> int:
             raise ValueError(f"--pressures must be comma-separated numbers, got {args.pressures!r}") from None
     # refuse bad protocol options before any mesh is built
     options = dict(c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
-                   temperature=args.temperature, seed=args.seed, bending=args.bending,
+                   temperature=args.temperature, seed=args.seed, bending=args.bending or "juelicher",
                    method=args.method, max_iter=args.max_iter, c0=args.c0,
                    prerelax=not args.no_prerelax, direct_return=not args.no_direct_return)
     if pressures is not None:
@@ -373,10 +375,11 @@ def _cmd_deflate(args) -> int:
             mesh = random_sphere(3594 if args.vertices is None else args.vertices,
                                  seed=args.seed, R=params.R)
     c0 = args.c0 if args.c0 is not None else from_file.get("c0")
+    bending = args.bending or from_file.get("bending", "juelicher")
     run = deflate(mesh, params, dv=args.dv, until=args.until, schedule=schedule,
                   c0_cycle=not args.no_c0_cycle, jiggle=args.jiggle,
                   temperature=args.temperature, seed=args.seed,
-                  bending=args.bending, method=args.method, max_iter=args.max_iter, c0=c0,
+                  bending=bending, method=args.method, max_iter=args.max_iter, c0=c0,
                   prerelax=not args.no_prerelax, direct_return=not args.no_direct_return,
                   out=args.out,
                   progress=not args.quiet, form_factors=from_file.get("form_factors"),

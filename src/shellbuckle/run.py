@@ -437,9 +437,12 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
 
     A Surface Evolver datafile or dump (``.fe``, ``.dmp``) brings its own moduli: the returned
     dict may hold ``A`` (``linear_elastic`` modulus), ``nu`` (``poisson_ratio``, if uniform),
-    ``kappa`` (``star_perp_sq_mean_curvature`` modulus / 2), ``c0`` (2 ``h_zero``) and
-    ``form_factors`` (the rest metrics). Any other format (through meshio) gives positions and
-    faces only; the mesh is then taken as the stress-free shape.
+    ``kappa`` (``star_perp_sq_mean_curvature`` modulus / 2), ``c0`` (2 ``h_zero``),
+    ``form_factors`` (the rest metrics) and ``bending = "evolver"`` when the file bends with
+    ``star_perp_sq_mean_curvature`` (so that a run keeps the file's discretization). An energy
+    quantity of another method is refused by name: the run could not keep the file's model.
+    Any other format (through meshio) gives positions and faces only; the mesh is then taken
+    as the stress-free shape.
     """
     from pathlib import Path as _Path
 
@@ -453,6 +456,12 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
     from .mesh.evolver_io import read_evolver
 
     evf = read_evolver(path)
+    modelled = ("linear_elastic", "star_perp_sq_mean_curvature")
+    other = [q for q in evf.quantities if q.kind == "energy" and q.method not in modelled]
+    if other:
+        names = ", ".join(f"{q.name} (method {q.method})" for q in other)
+        raise ValueError(f"mesh file {str(path)!r} has energy quantities shellbuckle does not "
+                         f"model: {names}; allowed: {', '.join(modelled)}")
     found: dict = {}
     elastic = evf.energy_quantities("linear_elastic")
     if elastic:
@@ -466,6 +475,7 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
     bending = evf.energy_quantities("star_perp_sq_mean_curvature")
     if bending:
         found["kappa"] = float(bending[0].modulus) / 2.0
+        found["bending"] = "evolver"
         if evf.h_zero is not None and np.ndim(evf.h_zero) == 0:
             found["c0"] = 2.0 * float(evf.h_zero)
     return evf.mesh, found
