@@ -283,3 +283,16 @@ def test_analysis_stored_by_another_classifier_version_is_computed_again(tmp_pat
     assert not analysis_complete(run.store)
     table, source = analysed_table(run)
     assert source == "computed" and "wrinkled" not in set(table["shape"])
+
+
+def test_the_shipped_reference_is_the_projects_copy():
+    """The package ships the paper's numbers; where the project's copy sits beside the
+    repository, the two are the same numbers."""
+    from pathlib import Path
+
+    shipped = reference_path()
+    assert shipped.name == "quilliet2008.json" and "shellbuckle" in shipped.parts
+    beside = Path(__file__).resolve().parents[2] / "shared" / "reference" / "quilliet2008.json"
+    if not beside.is_file():
+        pytest.skip("no project copy beside the repository (a plain clone)")
+    assert json.loads(shipped.read_text()) == json.loads(beside.read_text())

@@ -9,8 +9,9 @@ import pytest
 from shellbuckle.params import (PhysicalRangeWarning, ShellParameters, check_caption, d_over_R,
                                 gamma_from_d_over_R, thickness_factor)
 
-# The paper's reference values (shared with the reproduction report), next to the repository.
-_REFERENCE = [Path(__file__).resolve().parents[2] / "shared" / "reference" / "quilliet2008.json"]
+# The paper's reference values (shared with the reproduction report), shipped with the package.
+_REFERENCE = [Path(__file__).resolve().parents[1] / "src" / "shellbuckle" / "data"
+              / "quilliet2008.json"]
 
 # Caption pairs as printed in Quilliet et al. (2008): Fig. 4 (gamma = 743, "d/R = 0.116"),
 # Fig. 7 (271 -> 0.172, 2333 -> 0.0586, 20995 -> 0.0195), Fig. 8 (2916 -> 0.064), nu = 1/3.

@@ -403,9 +403,9 @@ def wrinkles_by_gamma(df: pd.DataFrame, *, nu=None) -> pd.DataFrame:
 
 def reference_path(path=None) -> Path:
     """Where the paper's numbers are: ``path`` if given, else ``$SHELLBUCKLE_REFERENCE``, else
-    ``reference/quilliet2008.json`` or ``shared/reference/quilliet2008.json`` under the
-    current folder or any folder above this package (the project keeps it beside the
-    repository). ValueError if none exists."""
+    the copy shipped with the package (``shellbuckle/data/quilliet2008.json``, the numbers of
+    Quilliet et al. 2008 as the reproduction compares them). ValueError if a given file does
+    not exist."""
     if path is not None:
         p = Path(path)
         if not p.is_file():
@@ -414,14 +414,12 @@ def reference_path(path=None) -> Path:
     env = os.environ.get(REFERENCE_ENV)
     if env:
         return reference_path(env)
-    bases = [Path.cwd(), *Path.cwd().parents, *Path(__file__).resolve().parents]
-    for base in bases:
-        for candidate in (base / "reference" / REFERENCE_NAME,
-                          base / "shared" / "reference" / REFERENCE_NAME):
-            if candidate.is_file():
-                return candidate
-    raise ValueError(f"the paper's reference numbers ({REFERENCE_NAME}) were not found; give "
-                     f"the file with --reference FILE or ${REFERENCE_ENV}")
+    shipped = Path(__file__).resolve().parents[1] / "data" / REFERENCE_NAME
+    if shipped.is_file():
+        return shipped
+    raise ValueError(f"the paper's reference numbers ({REFERENCE_NAME}) are missing from the "
+                     f"installed package; give the file with --reference FILE or "
+                     f"${REFERENCE_ENV}")
 
 
 def load_reference(path=None) -> dict:

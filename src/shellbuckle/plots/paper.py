@@ -64,9 +64,8 @@ FORMATS = ("png", "pdf", "svg")
 def load_reference(reference=None) -> dict | None:
     """The paper's values as a dict: ``reference`` may be that dict, a path (ValueError if it
     is not the reference file) or ``None``: found by
-    :func:`shellbuckle.analysis.collect.reference_path` (``$SHELLBUCKLE_REFERENCE``, then
-    ``shared/reference/quilliet2008.json`` above the current folder or this package); if not
-    found a warning is logged and ``None`` returned (the figures then show ours only)."""
+    :func:`shellbuckle.analysis.collect.reference_path` (``$SHELLBUCKLE_REFERENCE``, else the copy shipped with
+    the package); if not found a warning is logged and ``None`` returned (the figures then show ours only)."""
     from ..analysis import collect
 
     if isinstance(reference, dict):
