@@ -49,6 +49,7 @@ from .protocol.deflate import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
                               write_sweep_file)
+from .util import now
 
 log = logging.getLogger(__name__)
 
@@ -470,7 +471,7 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
         return {"name": name, "outcome": "skipped", "status": "finished", "message": None,
                 "wall_s": 0.0}
     t0, cpu0 = time.perf_counter(), time.process_time()
-    attempt = {"started": _now(), "ended": None, "wall_s": None, "cpu_s": None,
+    attempt = {"started": now(), "ended": None, "wall_s": None, "cpu_s": None,
                "host": socket.gethostname(),
                "pid": os.getpid(), "worker": _worker_name(),
                "action": "analyze" if state == "analyze" else "deflate", "outcome": "running",
@@ -497,18 +498,12 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
             outcome, message = "analysis failed", f"analysis: {type(exc).__name__}: {exc}"
             tb = _traceback.format_exc()
             log.warning("run %s: %s", name, message)
-    attempt.update(ended=_now(), wall_s=time.perf_counter() - t0,
+    attempt.update(ended=now(), wall_s=time.perf_counter() - t0,
                    cpu_s=time.process_time() - cpu0, outcome=outcome,
                    status=status, message=message)
     record_attempt(out_dir, name, attempt, replace_last=True, traceback=tb)
     return {"name": name, "outcome": outcome, "status": status, "message": message,
             "wall_s": attempt["wall_s"]}
-
-
-def _now() -> str:
-    import datetime as _dt
-
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
 # --------------------------------------------------------------------------- the sweep (client)
@@ -662,7 +657,7 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
                 name = names[future.key]
                 message = f"{type(exc).__name__}: {exc}"
                 log.warning("run %s: task failed: %s", name, message)
-                record_attempt(out_dir, name, {"started": None, "ended": _now(), "wall_s": None,
+                record_attempt(out_dir, name, {"started": None, "ended": now(), "wall_s": None,
                                                "host": None, "pid": None, "worker": None,
                                                "action": "deflate", "outcome": "failed",
                                                "status": "failed", "message": message},

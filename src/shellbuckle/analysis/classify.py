@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..util import json_safe
 from . import wrinkles
 from .descriptors import Descriptors, ShapeAnalyzer
 
@@ -200,12 +201,6 @@ def _open_run(run_or_path):
     return run_or_path
 
 
-def _clean(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
     """Classify the conformations of a stored run without writing anything.
 
@@ -234,7 +229,7 @@ def analyze_run(run_or_path, steps=None, progress: bool = False):
     """
     run = _open_run(run_or_path)
     results = classify_run(run, steps=steps, progress=progress)
-    run.store.update_analysis({k: {**{name: _clean(value) for name, value in
-                                      c.columns().items()}, "analysis_version": ANALYSIS_VERSION}
+    run.store.update_analysis({k: {**json_safe(c.columns()),
+                                   "analysis_version": ANALYSIS_VERSION}
                                for k, c in results.items()})
     return run.table

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..store.catalogue import typed_columns
 from .fits import W_WINDOW, fit_power_law, wrinkle_average
 
 log = logging.getLogger(__name__)
@@ -204,20 +205,6 @@ _FLOATS = ("gamma", "nu", "jiggle", "temperature", "dv", "until", "stop_dV_over_
            "W_std", "converged_fraction", "wall_s")
 _INTS = ("seed", "n_vertices", "n_steps", "W_steps")
 _BOOLS = ("c0_cycle", "primary_confirmed")
-
-
-def typed_columns(frame: pd.DataFrame, *, ints=(), floats=(), bools=()) -> pd.DataFrame:
-    """Cast columns in place: ``floats`` to float64 (NaN where missing), ``ints`` and ``bools``
-    to pandas' nullable ``Int64`` and ``boolean`` (``<NA>`` where None or NaN)."""
-    for c in floats:
-        frame[c] = pd.to_numeric(frame[c], errors="coerce").astype(np.float64)
-    for c in ints:
-        frame[c] = pd.array([None if v is None or v != v else int(v) for v in frame[c]],
-                            dtype="Int64")
-    for c in bools:
-        frame[c] = pd.array([None if v is None or v != v else bool(v) for v in frame[c]],
-                            dtype="boolean")
-    return frame
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:
@@ -422,9 +409,20 @@ def reference_path(path=None) -> Path:
                      f"${REFERENCE_ENV}")
 
 
-def load_reference(path=None) -> dict:
-    """The paper's numbers (:func:`reference_path`) as a dict."""
-    p = reference_path(path)
+def load_reference(path=None, *, required: bool = True) -> dict | None:
+    """The paper's numbers as a dict: ``path`` itself when it is one (a reference already
+    read), else the file :func:`reference_path` finds. ValueError if a given file is not the
+    reference, or if none is found and ``required``; without ``required`` a missing default
+    is logged and None returned (the figures then show our values only)."""
+    if isinstance(path, dict):
+        return path
+    try:
+        p = reference_path(path)
+    except ValueError as exc:
+        if required or path is not None:
+            raise
+        log.warning("%s; the paper's values are not drawn", exc)
+        return None
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:

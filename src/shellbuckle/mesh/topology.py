@@ -60,6 +60,13 @@ class Topology:
         """Number of edges at each vertex, shape ``(V,)``."""
         return np.diff(self.vertex_neighbors_ptr)
 
+    def mean_edge_length(self, X: np.ndarray) -> float:
+        """Mean length of the edges at positions ``X (V, 3)``, each undirected edge once: the
+        length scale of the jiggle and of the shape analysis' resolution (same bits as
+        ``norm(X[edges[:, 1]] - X[edges[:, 0]]).mean()``)."""
+        X = np.asarray(X, dtype=np.float64)
+        return float(np.linalg.norm(X[self.edges[:, 1]] - X[self.edges[:, 0]], axis=1).mean())
+
     @classmethod
     def from_faces(cls, faces, n_vertices: int | None = None) -> "Topology":
         """Build the connectivity of a closed, consistently oriented, manifold surface.

@@ -56,19 +56,6 @@ def _pyplot():
     return plt
 
 
-def _reference(reference):
-    """The reference dict: given, read from a path, or found; None (logged) if absent."""
-    if isinstance(reference, dict):
-        return reference
-    try:
-        return collect_mod.load_reference(reference)
-    except ValueError as exc:
-        if reference is not None:
-            raise
-        log.warning("the paper's values are not drawn: %s", exc)
-        return None
-
-
 def _nu(df) -> float:
     """The most common nu of the runs (as stored, not rounded); 1/3 without runs."""
     nu = df["nu"].dropna()
@@ -93,7 +80,7 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
     the paper's laws and the theory. ``fits`` defaults to
     :func:`~shellbuckle.analysis.collect.threshold_fits` of ``df``."""
     plt = _pyplot()
-    ref = _reference(reference)
+    ref = collect_mod.load_reference(reference, required=False)
     runs = collect_mod.deflation_runs(df)
     fits = collect_mod.threshold_fits(df) if fits is None else fits
     nu = _nu(runs if len(runs) else df)
@@ -167,7 +154,7 @@ def plot_W_vs_gamma(df, *, reference=None, path=None):
     gamma, :func:`~shellbuckle.analysis.collect.wrinkles_by_gamma`; error bar = standard
     deviation), each run's average as a small dot, and the paper's experimental W range."""
     plt = _pyplot()
-    ref = _reference(reference)
+    ref = collect_mod.load_reference(reference, required=False)
     pooled = collect_mod.wrinkles_by_gamma(df)
     runs = collect_mod.deflation_runs(df)
     runs = runs[runs["W_steps"].fillna(0).astype(int).to_numpy() > 0]
@@ -213,7 +200,7 @@ def plot_W_vs_dV(df, tables=None, *, reference=None, path=None):
     plt = _pyplot()
     from matplotlib.colors import LogNorm
 
-    ref = _reference(reference)
+    ref = collect_mod.load_reference(reference, required=False)
     runs = collect_mod.deflation_runs(df)
     window = W_WINDOW if ref is None else tuple(ref["results"]["wrinkle_average_window"])
     with plt.rc_context(STYLE):
@@ -255,7 +242,7 @@ FIGURES = ("fig04_W_vs_dV", "fig05_W_vs_gamma", "fig10_thresholds")
 
 def across_figures(df, tables=None, *, reference=None, fits=None) -> dict:
     """The three figures of a collected DataFrame: ``{stem: Figure}`` (:data:`FIGURES`)."""
-    ref = _reference(reference)
+    ref = collect_mod.load_reference(reference, required=False)
     if fits is None:
         fits = collect_mod.threshold_fits(df)
     n_gamma = collect_mod.deflation_runs(df)["gamma"].round(6).nunique()

@@ -25,8 +25,9 @@ and W are the table's analysis columns when the run was analysed
 each data curve has a ``gid`` (``"simulation:<run folder name>"``), so the figures can be checked
 against the runs.
 
-The paper's values come from the reference file ``quilliet2008.json`` (:func:`load_reference`);
-without it the figures show ours alone (logged).
+The paper's values come from the reference file ``quilliet2008.json``
+(:func:`shellbuckle.analysis.collect.load_reference`, re-exported here); without it the
+figures show ours alone (logged).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .. import theory
+from ..analysis.collect import load_reference
 from .render import CURVATURE_LIMIT, render
 from .theory import _STYLE
 
@@ -60,24 +62,6 @@ FORMATS = ("png", "pdf", "svg")
 
 
 # ---------------------------------------------------------------------- inputs
-
-def load_reference(reference=None) -> dict | None:
-    """The paper's values as a dict: ``reference`` may be that dict, a path (ValueError if it
-    is not the reference file) or ``None``: found by
-    :func:`shellbuckle.analysis.collect.reference_path` (``$SHELLBUCKLE_REFERENCE``, else the copy shipped with
-    the package); if not found a warning is logged and ``None`` returned (the figures then show ours only)."""
-    from ..analysis import collect
-
-    if isinstance(reference, dict):
-        return reference
-    if reference is not None:
-        return collect.load_reference(reference)
-    try:
-        return collect.load_reference()
-    except ValueError as exc:
-        log.warning("%s; the figures show our values only", exc)
-        return None
-
 
 def _paper(reference, key: str) -> dict | None:
     if reference is None:
@@ -281,7 +265,7 @@ def fig3_potato_capsule(potato, capsule, *, at: float | None = None, reference=N
     the energy ratio E_potato/E_capsule and the paper's (17 dimples, ratio 3.10).
     """
     potato, capsule = _open(potato), _open(capsule)
-    reference = load_reference(reference)
+    reference = load_reference(reference, required=False)
     paper = _paper(reference, "potato_vs_capsule")
     if at is None:
         at = paper["DeltaV_over_V"] if paper else min(
@@ -324,7 +308,8 @@ def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
     if not runs:
         raise ValueError("fig7_gallery needs at least one run")
     paper = {float(p["gamma"]): re.split(r"[,(]", p["shape"])[0].strip()
-             for p in (_paper(load_reference(reference), f"gallery_at_DeltaV_over_V_{at:g}")
+             for p in (_paper(load_reference(reference, required=False),
+                              f"gallery_at_DeltaV_over_V_{at:g}")
                        or [])}
     confs = [conformation(r, nearest_step(r, at)) for r in runs]
     captions = []
@@ -468,7 +453,7 @@ def fig11_paths(a, b, *, at: float | None = None, step_a: int | None = None,
     hi, lo = sorted(range(2), key=lambda i: -confs[i].E_over_kappa)
     ratio = confs[hi].E_over_kappa / confs[lo].E_over_kappa
     footer = [f"ours: $E_{'AB'[hi]}/E_{'AB'[lo]}$ = {ratio:.3f}"]
-    paper = _paper(load_reference(reference), "soleil")
+    paper = _paper(load_reference(reference, required=False), "soleil")
     paper_ratio = _soleil_ratio(paper)
     if paper_ratio is not None:
         footer += [f"paper ($\\gamma$ = {paper['gamma']:g}, $\\Delta V/V$ = "

@@ -53,7 +53,6 @@ Columns (:data:`COLUMNS`):
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import logging
 import math
@@ -63,8 +62,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..util import now
 from .atomic import atomic_write_bytes
-from .run import ANALYSIS_JSON, RUN_JSON, STEPS_DIR, RunStore
+from .run import ANALYSIS_JSON, RUN_JSON, STEPS_DIR, RunStore, check_format
 
 log = logging.getLogger(__name__)
 
@@ -91,10 +91,6 @@ COLUMNS = ("name", *PARAMETER_COLUMNS, *RESULT_COLUMNS, *TIME_COLUMNS, "tracebac
 TIMING_COLUMNS = TIME_COLUMNS
 
 
-def _now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
 def _write_json(path: Path, value) -> None:
     atomic_write_bytes(path, json.dumps(value, indent=1, allow_nan=True).encode("utf-8"))
 
@@ -117,13 +113,7 @@ def read_sweep_file(out_dir) -> dict:
     if data is None:
         raise ValueError(f"{out_dir} is not a shellbuckle sweep folder (it has no {SWEEP_JSON}; "
                          "made by `shellbuckle sweep --out DIR`)")
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise ValueError(f"{out_dir / SWEEP_JSON} is not a {FORMAT_NAME} description")
-    if data.get("format_version", 0) > FORMAT_VERSION:
-        raise ValueError(f"{out_dir} was written in {FORMAT_NAME} format version "
-                         f"{data['format_version']}; this shellbuckle reads up to version "
-                         f"{FORMAT_VERSION}, please upgrade")
-    return data
+    return check_format(data, out_dir / SWEEP_JSON, FORMAT_NAME, FORMAT_VERSION)
 
 
 def write_sweep_file(out_dir, spec: dict, runs: dict[str, dict]) -> dict:
@@ -152,14 +142,14 @@ def write_sweep_file(out_dir, spec: dict, runs: dict[str, dict]) -> dict:
         if spec not in data["specs"]:
             data["specs"].append(spec)
         data["runs"].update(runs)
-        data["updated"] = _now()
+        data["updated"] = now()
     else:
         if out_dir.exists() and any(os.scandir(out_dir)):
             raise ValueError(f"{out_dir} is a non-empty folder that is not a shellbuckle sweep; "
                              "choose a new or empty folder with --out")
         out_dir.mkdir(parents=True, exist_ok=True)
-        data = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "created": _now(),
-                "updated": _now(), "specs": [spec], "runs": runs}
+        data = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "created": now(),
+                "updated": now(), "specs": [spec], "runs": runs}
     _write_json(out_dir / SWEEP_JSON, data)
     return data
 
@@ -399,9 +389,21 @@ _FLOAT_COLUMNS = ("gamma", "nu", "dv", "until", "jiggle", "temperature", "final_
 _BOOL_COLUMNS = ("c0_cycle", "primary_confirmed")
 
 
-def _typed(frame: pd.DataFrame) -> pd.DataFrame:
-    from ..analysis.collect import typed_columns
+def typed_columns(frame: pd.DataFrame, *, ints=(), floats=(), bools=()) -> pd.DataFrame:
+    """Cast columns in place: ``floats`` to float64 (NaN where missing), ``ints`` and ``bools``
+    to pandas' nullable ``Int64`` and ``boolean`` (``<NA>`` where None or NaN)."""
+    for c in floats:
+        frame[c] = pd.to_numeric(frame[c], errors="coerce").astype(np.float64)
+    for c in ints:
+        frame[c] = pd.array([None if v is None or v != v else int(v) for v in frame[c]],
+                            dtype="Int64")
+    for c in bools:
+        frame[c] = pd.array([None if v is None or v != v else bool(v) for v in frame[c]],
+                            dtype="boolean")
+    return frame
 
+
+def _typed(frame: pd.DataFrame) -> pd.DataFrame:
     typed_columns(frame, ints=_INT_COLUMNS, floats=_FLOAT_COLUMNS, bools=_BOOL_COLUMNS)
     for c in COLUMNS:
         if c not in _INT_COLUMNS + _FLOAT_COLUMNS + _BOOL_COLUMNS:

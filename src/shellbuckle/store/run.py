@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import copy
 import csv
-import datetime as _dt
 import functools
 import hashlib
 import io
@@ -80,6 +79,7 @@ import h5py
 import numpy as np
 import pandas as pd
 
+from ..util import now
 from .atomic import FileLock, atomic_write_bytes, remove_temporaries, temporary_target
 
 log = logging.getLogger(__name__)
@@ -172,10 +172,6 @@ def _short(value, limit: int = 6) -> str:
     return repr(value)
 
 
-def _now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
 def _versions() -> dict:
     # the modules' own version attributes: importlib.metadata scans the installed
     # distributions (about 5 ms a call, twice per run)
@@ -217,7 +213,7 @@ def source_commit() -> str | None:
 
 
 def _session() -> dict:
-    return {"started": _now(), "command_line": list(sys.argv), "versions": _versions()}
+    return {"started": now(), "command_line": list(sys.argv), "versions": _versions()}
 
 
 # --------------------------------------------------------------------------- arrays
@@ -308,13 +304,19 @@ def _read_meta(path: Path) -> dict:
         meta = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path / RUN_JSON} is not valid JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
-        raise ValueError(f"{path / RUN_JSON} is not a {FORMAT_NAME} description")
-    if meta.get("format_version", 0) > FORMAT_VERSION:
-        raise ValueError(f"{path} was written in {FORMAT_NAME} format version "
-                         f"{meta['format_version']}; this shellbuckle reads up to version "
-                         f"{FORMAT_VERSION}, please upgrade")
-    return meta
+    return check_format(meta, path / RUN_JSON, FORMAT_NAME, FORMAT_VERSION)
+
+
+def check_format(data, file: Path, name: str, version: int) -> dict:
+    """``data``, read from ``file``, if it describes format ``name`` in a version up to
+    ``version`` (ValueError otherwise); the check of ``run.json`` and ``sweep.json``."""
+    if not isinstance(data, dict) or data.get("format") != name:
+        raise ValueError(f"{file} is not a {name} description")
+    if data.get("format_version", 0) > version:
+        raise ValueError(f"{file.parent} was written in {name} format version "
+                         f"{data['format_version']}; this shellbuckle reads up to version "
+                         f"{version}, please upgrade")
+    return data
 
 
 def _interrupted_creation(path: Path) -> bool:
@@ -412,7 +414,7 @@ class RunStore:
         X0, faces, rest = _check_mesh(X0, faces, rest)
         meta = {
             "format": FORMAT_NAME, "format_version": FORMAT_VERSION,
-            "run_id": uuid.uuid4().hex, "created": _now(),
+            "run_id": uuid.uuid4().hex, "created": now(),
             "params": _json_dict(params, "params"), "protocol": _json_dict(protocol, "protocol"),
             "mesh": {"n_vertices": len(X0), "n_faces": len(faces), "rest_arrays": sorted(rest),
                      "sha256": array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items()))},
@@ -420,7 +422,7 @@ class RunStore:
             "platform": {"system": platform.system(), "release": platform.release(),
                          "machine": platform.machine(), "python": platform.python_implementation()},
             "command_line": list(sys.argv), "sessions": [_session()],
-            "status": "running", "message": None, "updated": _now(),
+            "status": "running", "message": None, "updated": now(),
             "extra": _json_dict(extra_meta or {}, "extra_meta"),
         }
         if path.exists() and not path.is_dir():
@@ -471,7 +473,7 @@ class RunStore:
     def _start_session(self) -> None:
         self._take_writer_lock()
         self._meta["sessions"].append(_session())
-        self._meta.update(status="running", message=None, updated=_now())
+        self._meta.update(status="running", message=None, updated=now())
         self._write_meta()
         log.info("resuming run %s in %s after step %s", self.run_id, self._path, self.last_step)
 
@@ -792,7 +794,7 @@ class RunStore:
         if message is not None and not isinstance(message, str):
             raise ValueError(f"status message must be a string, got {type(message).__name__}")
         self._take_writer_lock()
-        self._meta.update(status=status, message=message, updated=_now())
+        self._meta.update(status=status, message=message, updated=now())
         self._write_meta()
         self._write_table()
 
