@@ -48,30 +48,15 @@ _CELL_DATA = {"vtk", "vtu"}
 
 
 def _open(run):
-    from .run import Run
+    from .store.view import Run
 
-    return run if isinstance(run, Run) else Run.open(run)
+    return Run.of(run)
 
 
 def resolve_step(run, step) -> int:
-    """The stored step number meant by ``step``: a stored step, or a negative index from the end.
-
-    Raises ``ValueError`` naming the stored steps when ``step`` is not one of them.
-    """
-    steps = list(run.steps)
-    if not steps:
-        raise ValueError(f"run {str(run.path)!r} has no finished step yet")
-    if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
-        raise ValueError(f"step must be an integer, got {step!r}")
-    step = int(step)
-    if step < 0 and -len(steps) <= step:
-        return steps[step]
-    if step in steps:
-        return step
-    contiguous = steps == list(range(steps[0], steps[-1] + 1))
-    allowed = (f"{steps[0]}..{steps[-1]}" if contiguous else ", ".join(map(str, steps)))
-    raise ValueError(f"step {step} is not stored in {str(run.path)!r}; allowed steps: {allowed} "
-                     f"(or -1 .. -{len(steps)} counted from the last)")
+    """The stored step number meant by ``step`` in ``run`` (a Run or a run folder):
+    :meth:`shellbuckle.run.Run.step`, kept under this name for existing callers."""
+    return _open(run).step(step)
 
 
 @dataclass(frozen=True, eq=False)

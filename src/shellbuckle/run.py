@@ -9,6 +9,7 @@ schedule (re-inflation, arbitrary paths) while keeping the original stress-free 
 ``continue_in_parameter`` follows a path in gamma or in c0 at the fixed volume of a stored step
 (the paper's Fig. 11 conformation, reached from a capsule at lower gamma), and
 ``compare_paths`` puts two conformations reached by different paths side by side.
+:class:`Run`, a stored run read back (:mod:`shellbuckle.store.view`), is re-exported here.
 """
 
 from __future__ import annotations
@@ -26,91 +27,9 @@ from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .solve.linear import check_mode, check_threads, default_threads
 from .store.run import RunStore
+from .store.view import Run
 
 log = logging.getLogger(__name__)
-
-
-class Run:
-    """A stored run: parameters, protocol, per-step table and conformations.
-
-    ``table`` is a pandas DataFrame with the SPEC §7 columns; ``positions(k)`` the vertex
-    positions of step ``k``; ``mesh(k)`` a :class:`~shellbuckle.mesh.Mesh` of step ``k``.
-    """
-
-    def __init__(self, store: RunStore):
-        self.store = store
-
-    @classmethod
-    def open(cls, path) -> "Run":
-        return cls(RunStore.open(path))
-
-    @property
-    def path(self) -> Path:
-        return self.store.path
-
-    @property
-    def params(self) -> ShellParameters:
-        return ShellParameters.from_dict(self.store.params)
-
-    @property
-    def protocol(self) -> Protocol:
-        return Protocol.from_dict(self.store.protocol)
-
-    @property
-    def table(self):
-        return self.store.table()
-
-    @property
-    def steps(self) -> list[int]:
-        return self.store.steps
-
-    @property
-    def faces(self) -> np.ndarray:
-        return self.store.faces
-
-    def params_at(self, k: int = -1) -> ShellParameters:
-        """The parameters in force at step ``k``: :attr:`params`, with the step's own gamma
-        along a gamma path (the ``gamma`` column of its table)."""
-        params = self.params
-        gamma = self.store.record(self._step(k)).get("gamma")
-        if gamma is None or gamma == params.gamma:
-            return params
-        return params.with_gamma(gamma)
-
-    def c0_at(self, k: int = -1) -> float:
-        """The spontaneous curvature (c = c1 + c2) in force at step ``k``."""
-        c0 = self.store.record(self._step(k)).get("c0")
-        if c0 is not None:
-            return float(c0)
-        c0 = self.protocol.c0
-        return 2.0 / self.params.R if c0 is None else float(c0)
-
-    def _step(self, k: int) -> int:
-        """Step ``k`` of this run (negative: counted from the last); ValueError if absent."""
-        steps = self.store.steps
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-            raise ValueError(f"a step must be an integer, got {k!r}")
-        if k < 0 and -len(steps) <= k:
-            return steps[k]
-        if k not in steps:
-            held = f"0..{steps[-1]}" if steps else "none"
-            raise ValueError(f"step {k} is not a finished step of run {self.path}; allowed: "
-                             f"{held} (or -1 .. -{len(steps)} counted from the last)")
-        return int(k)
-
-    def positions(self, k: int = -1) -> np.ndarray:
-        steps = self.store.steps
-        return self.store.positions(steps[k] if k < 0 else k)
-
-    def mesh(self, k: int = -1) -> Mesh:
-        return Mesh.from_arrays(self.positions(k), self.store.faces)
-
-    @property
-    def status(self) -> str:
-        return self.store.status
-
-    def __repr__(self):
-        return f"Run({str(self.path)!r}, status={self.status!r}, steps={len(self.steps)})"
 
 
 MAIN_JOB_GAMMA = 15163.0
@@ -212,8 +131,8 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
     Other protocol options default to the parent's. The stress-free reference stays the
     parent's initial sphere.
     """
-    parent = run if isinstance(run, Run) else Run.open(run)
-    step = parent._step(step)
+    parent = Run.of(run)
+    step = parent.step(step)
     start = float(parent.store.record(step)["dV_over_V"])
     if schedule is None:
         if dv is None or until is None:
@@ -248,10 +167,10 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
     of each step, and ``continue_from`` on the result deflates further at the path's end.
     The run stays resumable (call again with the same arguments, or :func:`resume`).
     """
-    parent = run if isinstance(run, Run) else Run.open(run)
+    parent = Run.of(run)
     if (gamma is None) == (c0 is None):
         raise ValueError("give exactly one of gamma=... and c0=... (the parameter to follow)")
-    step = parent._step(step)
+    step = parent.step(step)
     control, value = ("gamma", gamma) if gamma is not None else ("c0", c0)
     start = parent.params_at(step).gamma if control == "gamma" else parent.c0_at(step)
     values = _parameter_values(control, value, start, increments)
@@ -334,8 +253,8 @@ def compare_paths(run_a, step_a: int, run_b, step_b: int) -> dict:
 
 
 def _side(run, step: int) -> dict:
-    run = run if isinstance(run, Run) else Run.open(run)
-    k = run._step(step)
+    run = Run.of(run)
+    k = run.step(step)
     record = run.store.record(k)
     params = run.params_at(k)
     out = {"path": str(run.path), "step": k, "gamma": params.gamma, "nu": params.nu,

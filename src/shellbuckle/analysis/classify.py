@@ -193,12 +193,10 @@ RUN_COLUMNS = ("shape", "n_dimples", "corners", "W", "dent_depth", "dent_sagitta
                "asphericity", "contact_distance")
 
 
-def _open_run(run_or_path):
-    if isinstance(run_or_path, (str, bytes)) or hasattr(run_or_path, "__fspath__"):
-        from ..run import Run
+def _run(run_or_path):
+    from ..store.view import Run  # imported when needed: it brings in the protocol
 
-        return Run.open(run_or_path)
-    return run_or_path
+    return Run.of(run_or_path)
 
 
 def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
@@ -207,7 +205,7 @@ def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
     ``run_or_path``: a :class:`shellbuckle.run.Run` or a run folder. ``steps``: the steps to
     classify (default all finished steps). Returns ``{step: Classification}``.
     """
-    run = _open_run(run_or_path)
+    run = _run(run_or_path)
     steps = list(run.steps) if steps is None else [int(k) for k in steps]
     analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.store.X0))
     iterator = steps
@@ -227,7 +225,7 @@ def analyze_run(run_or_path, steps=None, progress: bool = False):
     pandas DataFrame) with the columns filled in. ``steps`` restricts the work to some steps
     (default: all finished steps, refreshing earlier results).
     """
-    run = _open_run(run_or_path)
+    run = _run(run_or_path)
     results = classify_run(run, steps=steps, progress=progress)
     run.store.update_analysis({k: {**json_safe(c.columns()),
                                    "analysis_version": ANALYSIS_VERSION}

@@ -109,9 +109,9 @@ def events(run_or_path, table=None) -> list[Event]:
     writing; :func:`shellbuckle.analysis.analyze_run` stores them). ``table`` may be given to
     avoid re-reading it.
     """
-    from .classify import _open_run
+    from ..store.view import Run
 
-    run = _open_run(run_or_path)
+    run = Run.of(run_or_path)
     table = _table_with_shapes(run, table).reset_index(drop=True)
     if table.empty:
         return []

@@ -93,7 +93,7 @@ def _cmd(args) -> int:
     from ..run import Run, continue_from, continue_in_parameter
 
     parent = Run.open(args.dir)
-    step = parent._step(args.step)
+    step = parent.step(args.step)
     options = {"c0_cycle": False} if args.no_c0_cycle else {}
     for name in ("temperature", "jiggle", "seed", "method"):
         if getattr(args, name) is not None:

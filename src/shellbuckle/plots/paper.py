@@ -70,9 +70,9 @@ def _paper(reference, key: str) -> dict | None:
 
 
 def _open(run):
-    from ..run import Run
+    from ..store.view import Run
 
-    return run if isinstance(run, Run) else Run.open(run)
+    return Run.of(run)
 
 
 def _name(run) -> str:

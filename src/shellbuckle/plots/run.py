@@ -143,5 +143,5 @@ def plot_deflation(run, path=None, step: int = -1):
     faces = run.faces
     H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
     table = run.table
-    table = table[table["step"] <= (run.steps[step])]
+    table = table[table["step"] <= run.step(step)]
     return plot_run(table, run.params, X, faces, H, path=path, axis=view_axis(X, faces))

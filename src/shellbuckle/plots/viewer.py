@@ -206,7 +206,7 @@ def html_page(run, color: str = "curvature") -> str:
 
     if color not in COLORS:
         raise ValueError(f"color must be one of {', '.join(COLORS)}, got {color!r}")
-    run = run if isinstance(run, Run) else Run.open(run)
+    run = Run.of(run)
     data = _payload(run, color)
     # JSON inside <script>: '<' escaped so that no '</script>' can end the element early
     text = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")

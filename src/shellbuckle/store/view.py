@@ -1,0 +1,116 @@
+"""A stored run read through the package's types: :class:`Run`.
+
+:class:`~shellbuckle.store.run.RunStore` reads and writes a run folder in plain values;
+:class:`Run` gives them as :class:`~shellbuckle.params.ShellParameters`,
+:class:`~shellbuckle.protocol.deflate.Protocol`, a table and meshes, and resolves step indices
+(:meth:`Run.step`). It lives here, below the analysis and the run drivers of
+:mod:`shellbuckle.run` (which re-exports it), so that both can open a run folder.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..mesh.mesh import Mesh
+from ..params import ShellParameters
+from ..protocol.deflate import Protocol
+from .run import RunStore
+
+
+class Run:
+    """A stored run: parameters, protocol, per-step table and conformations.
+
+    ``table`` is a pandas DataFrame with the SPEC §7 columns; ``positions(k)`` the vertex
+    positions of step ``k``; ``mesh(k)`` a :class:`~shellbuckle.mesh.Mesh` of step ``k``;
+    ``step(k)`` the stored step that index ``k`` means (negative counts from the last).
+    """
+
+    def __init__(self, store: RunStore):
+        self.store = store
+
+    @classmethod
+    def open(cls, path) -> "Run":
+        return cls(RunStore.open(path))
+
+    @classmethod
+    def of(cls, run_or_path) -> "Run":
+        """``run_or_path`` itself if it is a :class:`Run`, else the run in that folder."""
+        if isinstance(run_or_path, cls):
+            return run_or_path
+        if isinstance(run_or_path, (str, bytes, os.PathLike)):
+            return cls.open(run_or_path)
+        raise ValueError(f"expected a Run or a run folder, got {type(run_or_path).__name__}")
+
+    @property
+    def path(self) -> Path:
+        return self.store.path
+
+    @property
+    def params(self) -> ShellParameters:
+        return ShellParameters.from_dict(self.store.params)
+
+    @property
+    def protocol(self) -> Protocol:
+        return Protocol.from_dict(self.store.protocol)
+
+    @property
+    def table(self):
+        return self.store.table()
+
+    @property
+    def steps(self) -> list[int]:
+        return self.store.steps
+
+    @property
+    def faces(self) -> np.ndarray:
+        return self.store.faces
+
+    def step(self, k: int = -1) -> int:
+        """The stored step meant by ``k``: a finished step, or a negative index counted from
+        the last (-1 is the last). ValueError naming the allowed steps otherwise."""
+        steps = self.store.steps
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+            raise ValueError(f"a step must be an integer, got {k!r}")
+        if not steps:
+            raise ValueError(f"run {str(self.path)!r} has no finished step yet")
+        if k < 0 and -len(steps) <= k:
+            return steps[k]
+        if k not in steps:
+            raise ValueError(f"step {k} is not a finished step of run {str(self.path)!r}; "
+                             f"allowed steps: {steps[0]}..{steps[-1]} (or -1 .. "
+                             f"-{len(steps)} counted from the last)")
+        return int(k)
+
+    def params_at(self, k: int = -1) -> ShellParameters:
+        """The parameters in force at step ``k``: :attr:`params`, with the step's own gamma
+        along a gamma path (the ``gamma`` column of its table)."""
+        params = self.params
+        gamma = self.store.record(self.step(k)).get("gamma")
+        if gamma is None or gamma == params.gamma:
+            return params
+        return params.with_gamma(gamma)
+
+    def c0_at(self, k: int = -1) -> float:
+        """The spontaneous curvature (c = c1 + c2) in force at step ``k``."""
+        c0 = self.store.record(self.step(k)).get("c0")
+        if c0 is not None:
+            return float(c0)
+        c0 = self.protocol.c0
+        return 2.0 / self.params.R if c0 is None else float(c0)
+
+    def positions(self, k: int = -1) -> np.ndarray:
+        """Vertex positions ``(V, 3)`` of step ``k`` (:meth:`step`)."""
+        return self.store.positions(self.step(k))
+
+    def mesh(self, k: int = -1) -> Mesh:
+        return Mesh.from_arrays(self.positions(k), self.store.faces)
+
+    @property
+    def status(self) -> str:
+        return self.store.status
+
+    def __repr__(self):
+        return f"Run({str(self.path)!r}, status={self.status!r}, steps={len(self.steps)})"
