@@ -9,6 +9,7 @@ import pytest
 from shellbuckle import theory as T
 from shellbuckle.cli import main
 from shellbuckle.params import ShellParameters
+from shellbuckle.run import MAIN_JOB_GAMMA
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -21,9 +22,10 @@ def test_theory_with_no_options_writes_the_default_png(tmp_path):
     assert proc.returncode == 0, proc.stderr
     png = tmp_path / "shellbuckle_theory.png"
     assert png.read_bytes()[:8] == PNG_SIGNATURE and png.stat().st_size > 10_000
-    # printed d/R at the default gamma = 2333, nu = 1/3 is sqrt(8/gamma) (reference conventions)
+    # printed d/R at the default gamma (every command's: the main job's), nu = 1/3 is
+    # sqrt(8/gamma) (reference conventions)
     d = float(re.search(r"d/R = ([0-9.]+)", proc.stdout).group(1))
-    assert math.isclose(d, math.sqrt(8 / 2333), rel_tol=1e-3)
+    assert math.isclose(d, math.sqrt(8 / MAIN_JOB_GAMMA), rel_tol=1e-3)
     assert "crossing" in proc.stdout and "classical" in proc.stdout
     assert "Traceback" not in proc.stderr
 

@@ -188,3 +188,26 @@ def test_cli_continues_from_a_stored_step(uninterrupted, tmp_path, capsys):
     assert main(["deflate", "--from", str(uninterrupted.path), "--step", "99", "--dv", "-0.03",
                  "--until", "0.0", "--out", str(tmp_path / "bad")]) == 2
     assert "allowed" in capsys.readouterr().err
+
+
+def test_step_resolves_negative_indices_and_names_the_allowed_steps(uninterrupted):
+    steps = uninterrupted.steps
+    assert uninterrupted.step(-1) == steps[-1] and uninterrupted.step(-len(steps)) == 0
+    assert uninterrupted.step(3) == 3 and isinstance(uninterrupted.step(np.int64(2)), int)
+    for bad in (len(steps), -len(steps) - 1):
+        with pytest.raises(ValueError, match=rf"allowed steps: 0\.\.{steps[-1]} \(or -1 \.\. "
+                                             rf"-{len(steps)} counted from the last\)"):
+            uninterrupted.step(bad)
+    for bad in (1.0, True, "1"):
+        with pytest.raises(ValueError, match="must be an integer"):
+            uninterrupted.step(bad)
+    np.testing.assert_array_equal(uninterrupted.positions(-1),
+                                  uninterrupted.positions(steps[-1]))
+
+
+def test_of_opens_a_folder_and_keeps_a_run(uninterrupted):
+    assert Run.of(uninterrupted) is uninterrupted
+    assert Run.of(uninterrupted.path).table.equals(uninterrupted.table)
+    assert Run.of(str(uninterrupted.path)).steps == uninterrupted.steps
+    with pytest.raises(ValueError, match="a Run or a run folder"):
+        Run.of(3)

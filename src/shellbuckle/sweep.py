@@ -224,12 +224,13 @@ class SweepSpec:
         return cls(**data)
 
     @classmethod
-    def from_toml(cls, path, **overrides) -> "SweepSpec":
+    def from_toml(cls, path, *, defaults: dict | None = None, **overrides) -> "SweepSpec":
         """A spec from a TOML file (see ``examples/sweep.toml``), ``overrides`` taking precedence.
 
         Keys are the :class:`SweepSpec` fields, at the top level or in tables ``[sweep]``,
         ``[mesh]`` and ``[protocol]`` (grouping only). Giving ``vertices`` or ``icosphere`` in
-        ``overrides`` replaces both mesh axes of the file.
+        ``overrides`` replaces both mesh axes of the file. ``defaults`` gives values for the
+        fields that neither the file nor ``overrides`` give (the command line's defaults).
         """
         path = Path(path)
         try:
@@ -251,7 +252,7 @@ class SweepSpec:
             data.pop("vertices", None)
             data.pop("icosphere", None)
         data.update(overrides)
-        return cls.from_dict(data)
+        return cls.from_dict((defaults or {}) | data)
 
     def to_dict(self) -> dict:
         """Plain JSON values (lists for the axes), as stored in ``sweep.json``."""

@@ -1,75 +1,155 @@
-"""``shellbuckle continue DIR --step K --gamma [G0:]G1 --increments N``: a path in gamma or c0.
+"""``shellbuckle continue DIR --step K``: a new run from a stored step, along a volume path or
+a path in gamma or c0.
 
-Follows a path in the Foppl-von Karman number gamma (equal ratios) or in the spontaneous
-curvature c0 (equal differences) at the fixed enclosed volume of step K of the run in DIR,
-with the deflation protocol's jiggle, minimizer and c0 cycle at every increment
-(:func:`shellbuckle.run.continue_in_parameter`). ``--then-deflate-to DV`` continues the end of
-the path in volume (:func:`shellbuckle.run.continue_from`); ``--compare DIR2`` puts the last
-conformation next to a step of another run (:func:`shellbuckle.run.compare_paths`), e.g. the
-paper's Fig. 11: a capsule taken from gamma = 2333 to 15163 against the wrinkled bowl of
-progressive deflation at gamma = 15163.
+- Volume path, ``--dv/--until`` or ``--schedule`` (:func:`shellbuckle.run.continue_from`):
+  deflate further or re-inflate (``--dv -0.019``) from step K, with the stored run's reference
+  sphere, parameters and protocol; ``shellbuckle deflate --from DIR --step K`` is another
+  spelling of it.
+- Parameter path, ``--gamma [G0:]G1`` or ``--c0 [C0:]C1`` with ``--increments N``
+  (:func:`shellbuckle.run.continue_in_parameter`): gamma in equal ratios or the spontaneous
+  curvature c0 in equal differences at the fixed enclosed volume of step K, with the
+  deflation protocol's jiggle, minimizer and c0 cycle at every increment;
+  ``--then-deflate-to DV`` continues the end of the path in volume.
+
+``--compare DIR2`` puts the last conformation next to a step of another run
+(:func:`shellbuckle.run.compare_paths`), e.g. the paper's Fig. 11: a capsule taken from
+gamma = 2333 to 15163 against the wrinkled bowl of progressive deflation at gamma = 15163.
+Protocol options left out keep the stored run's values.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
+
+from ._options import (add_protocol_options, add_run_output_options, protocol_defaults,
+                       protocol_values, stored_step, values)
+
+#: Protocol options a continued run takes from the stored run unless given.
+INHERITED = ("seed", "c0_cycle", "temperature", "jiggle", "method", "max_iter", "prerelax",
+             "direct_return")
 
 
 def register(sub) -> None:
     parser = sub.add_parser(
-        "continue", help="follow a path in gamma or c0 at fixed volume from a stored step",
-        description="Start from step K of the run in DIR and change gamma (in equal ratios) or "
-                    "the spontaneous curvature c0 (c = c1 + c2, in equal differences) in N "
-                    "increments, minimizing at the enclosed volume of step K at each one with "
-                    "the run's protocol (jiggle, minimizer, zero-curvature cycle). Each "
-                    "increment is one stored step of a new run in --out (resumable: run the "
-                    "same command again). Example (the paper's Fig. 11): "
+        "continue", help="continue from a stored step: in volume, or along a path in gamma "
+                         "or c0 at fixed volume",
+        description="Start a new run in --out from step K of the run in DIR, with its "
+                    "reference sphere, parameters and protocol (options given replace them). "
+                    "Either a volume path: --dv/--until or --schedule, e.g. --dv -0.019 "
+                    "--until 0.2 re-inflates (`shellbuckle deflate --from DIR` is the same); "
+                    "or a path in gamma (equal ratios) or in the spontaneous curvature c0 "
+                    "(c = c1 + c2, equal differences) in N increments, minimizing at the "
+                    "enclosed volume of step K at each one with the run's protocol (jiggle, "
+                    "minimizer, zero-curvature cycle); each increment is one stored step. "
+                    "Resumable: run the same command again. Example (the paper's Fig. 11): "
                     "shellbuckle continue runs/g2333 --step 34 --gamma 15163 --increments 8 "
                     "--out runs/g2333_to_15163 --compare runs/g15163")
     parser.add_argument("dir", metavar="DIR", help="run folder to start from")
     parser.add_argument("--step", type=int, default=-1,
                         help="the step of DIR to start from (default: the last; negative "
                              "values count from the last)")
-    what = parser.add_mutually_exclusive_group(required=True)
-    what.add_argument("--gamma", metavar="[G0:]G1 | G1,G2,..",
-                      help="gamma to reach (G0, if given, must be the step's gamma), or the "
-                           "list of values, one per increment")
-    what.add_argument("--c0", metavar="[C0:]C1 | C1,C2,..",
-                      help="spontaneous curvature to reach (c = c1 + c2; the stress-free "
-                           "sphere has 2/R), or the list of values")
-    parser.add_argument("--increments", type=int,
-                        help="number of increments to the target (required with a target, "
-                             "0 stores the start only)")
-    proto = parser.add_argument_group("protocol (default: the run's)")
-    proto.add_argument("--no-c0-cycle", action="store_true",
-                       help="skip the zero-spontaneous-curvature cycle at each increment")
-    proto.add_argument("--temperature", type=float,
-                       help="jiggle temperature on Surface Evolver's scale (std 0.28 T x size)")
-    proto.add_argument("--jiggle", type=float,
-                       help="jiggle amplitude as a fraction of the mean edge length")
-    proto.add_argument("--seed", type=int, help="seed of the jiggle (default: the run's)")
-    proto.add_argument("--method", choices=["newton", "alternate", "cg", "gd"],
-                       help="minimizer (default: the run's)")
-    then = parser.add_argument_group("afterwards")
-    then.add_argument("--then-deflate-to", type=float, metavar="DV",
+    volume = parser.add_argument_group("a volume path (a negative --dv re-inflates)")
+    add_protocol_options(volume, ("dv", "until", "schedule"))
+    what = parser.add_argument_group("or a path in gamma or c0 at the volume of step K")
+    exclusive = what.add_mutually_exclusive_group()
+    exclusive.add_argument("--gamma", metavar="[G0:]G1 | G1,G2,..",
+                           help="gamma to reach (G0, if given, must be the step's gamma), or "
+                                "the list of values, one per increment")
+    exclusive.add_argument("--c0", metavar="[C0:]C1 | C1,C2,..",
+                           help="spontaneous curvature to reach (c = c1 + c2; the stress-free "
+                                "sphere has 2/R), or the list of values")
+    what.add_argument("--increments", type=int,
+                      help="number of increments to the target (required with a target, "
+                           "0 stores the start only)")
+    what.add_argument("--then-deflate-to", type=float, metavar="DV",
                       help="continue the end of the path in volume up to dV/V = DV (steps of "
                            "--dv; a smaller DV re-inflates)")
-    then.add_argument("--dv", type=float, default=0.019,
-                      help="volume step of --then-deflate-to (default 0.019)")
-    then.add_argument("--then-out", metavar="DIR2",
+    what.add_argument("--then-out", metavar="DIR2",
                       help="run folder of --then-deflate-to (default: OUT_deflated)")
+    add_protocol_options(parser.add_argument_group("protocol (default: the run's)"), INHERITED,
+                         inherited=True)
+    then = parser.add_argument_group("afterwards")
     then.add_argument("--compare", metavar="RUN",
                       help="compare the last conformation with a step of the run folder RUN")
     then.add_argument("--compare-step", type=int,
                       help="the step of --compare (default: the step whose dV/V is closest)")
     then.add_argument("--json", action="store_true", help="print the comparison as JSON")
     parser.add_argument("--out", required=True, metavar="OUT", help="run folder of the path")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.set_defaults(func=_cmd)
+    add_run_output_options(parser)
+    parser.set_defaults(func=continue_run)
 
 
-def _values(option: str, text: str, start: float):
+def continue_run(args) -> int:
+    """``shellbuckle continue`` (and ``deflate --from``): a volume path or a parameter path
+    from step ``args.step`` of the run in ``args.dir``, then the comparison if asked."""
+    from ..run import Run
+    from ._output import report_run
+
+    parent = Run.open(args.dir)
+    step = stored_step(parent, args.step)
+    options = protocol_values(args, INHERITED)
+    if args.gamma is None and args.c0 is None:
+        last = _volume_path(parent, step, args, options)
+        report_run(last, plot=not args.no_plot)
+    else:
+        last = _parameter_path(parent, step, args, options)
+    if args.compare is not None:
+        _compare(last, Run.open(args.compare), args.compare_step, args.json)
+    return 0
+
+
+def _volume_path(parent, step: int, args, options: dict):
+    from ..run import continue_from
+
+    for flag in ("increments", "then_deflate_to", "then_out"):
+        if getattr(args, flag) is not None:
+            raise ValueError(f"--{flag.replace('_', '-')} goes with a path in --gamma or --c0; "
+                             "a volume path ends at --until")
+    schedule = values("--schedule", args.schedule) or None if args.schedule else None
+    if schedule is not None:
+        return continue_from(parent, step, args.out, schedule=schedule,
+                             progress=not args.quiet, **options)
+    defaults = protocol_defaults()
+    return continue_from(parent, step, args.out,
+                         dv=defaults["dv"] if args.dv is None else args.dv,
+                         until=defaults["until"] if args.until is None else args.until,
+                         progress=not args.quiet, **options)
+
+
+def _parameter_path(parent, step: int, args, options: dict):
+    from ..run import continue_from, continue_in_parameter
+    from ._output import report_run
+
+    for flag in ("until", "schedule"):
+        if getattr(args, flag) is not None:
+            raise ValueError(f"--{flag} makes a volume path; a path in gamma or c0 goes on in "
+                             "volume with --then-deflate-to")
+    if args.dv is not None and args.then_deflate_to is None:
+        raise ValueError("--dv with a path in gamma or c0 is the step of --then-deflate-to")
+    if args.gamma is not None:
+        kind = {"gamma": _target("--gamma", args.gamma, parent.params_at(step).gamma)}
+    else:
+        kind = {"c0": _target("--c0", args.c0, parent.c0_at(step))}
+    value = next(iter(kind.values()))
+    if isinstance(value, float) and args.increments is None:
+        raise ValueError("a target value needs --increments N (e.g. --increments 8)")
+    if isinstance(value, list) and args.increments is not None:
+        raise ValueError("--increments goes with a target value, not with a list of values")
+    run = continue_in_parameter(parent, step, args.out, increments=args.increments,
+                                progress=not args.quiet, **kind, **options)
+    report_run(run)
+    if args.then_deflate_to is None:
+        return run
+    start = float(run.table["dV_over_V"].iloc[-1])
+    dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
+    out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
+    last = continue_from(run, -1, out, dv=dv if args.then_deflate_to > start else -dv,
+                         until=args.then_deflate_to, progress=not args.quiet)
+    report_run(last)
+    return last
+
+
+def _target(option: str, text: str, start: float):
     """A target (float), or a list of values; ``A:B`` checks that ``A`` is the start."""
     try:
         if "," in text:
@@ -89,55 +169,9 @@ def _values(option: str, text: str, start: float):
                          f"numbers, got {text!r}") from None
 
 
-def _cmd(args) -> int:
-    from ..run import Run, continue_from, continue_in_parameter
-
-    parent = Run.open(args.dir)
-    step = parent.step(args.step)
-    options = {"c0_cycle": False} if args.no_c0_cycle else {}
-    for name in ("temperature", "jiggle", "seed", "method"):
-        if getattr(args, name) is not None:
-            options[name] = getattr(args, name)
-    if args.gamma is not None:
-        value = _values("--gamma", args.gamma, parent.params_at(step).gamma)
-        kind = {"gamma": value}
-    else:
-        value = _values("--c0", args.c0, parent.c0_at(step))
-        kind = {"c0": value}
-    increments = args.increments
-    if isinstance(value, float) and increments is None:
-        raise ValueError("a target value needs --increments N (e.g. --increments 8)")
-    if isinstance(value, list) and increments is not None:
-        raise ValueError("--increments goes with a target value, not with a list of values")
-    run = continue_in_parameter(parent, step, args.out, increments=increments,
-                                progress=not args.quiet, **kind, **options)
-    _summary(run)
-    last = run
-    if args.then_deflate_to is not None:
-        start = float(run.table["dV_over_V"].iloc[-1])
-        dv = abs(args.dv) if args.then_deflate_to > start else -abs(args.dv)
-        out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
-        last = continue_from(run, -1, out, dv=dv, until=args.then_deflate_to,
-                             progress=not args.quiet)
-        _summary(last)
-    if args.compare is not None:
-        _compare(last, Run.open(args.compare), args.compare_step, args.json)
-    return 0
-
-
-def _summary(run) -> None:
-    table = run.table
-    row = table.iloc[-1]
-    gamma = run.params_at(-1).gamma
-    print(f"run folder: {run.path}")
-    print(f"status: {run.status} ({run.store.meta.get('message')})")
-    print(f"steps: {int(row['step'])}, gamma = {gamma:.6g}, c0 = {run.c0_at(-1):.6g}, "
-          f"dV/V = {row['dV_over_V']:.4f}, E/kappa = {row['E_over_kappa']:.6g}")
-
-
 def _compare(run, other, other_step, as_json: bool) -> None:
-    from ..cli import _json_safe
     from ..run import compare_paths
+    from ._output import print_json
 
     if other_step is None:
         target = float(run.table["dV_over_V"].iloc[-1])
@@ -145,7 +179,7 @@ def _compare(run, other, other_step, as_json: bool) -> None:
         other_step = int(table["step"].iloc[(table["dV_over_V"] - target).abs().argmin()])
     result = compare_paths(run, -1, other, other_step)
     if as_json:
-        print(json.dumps(_json_safe(result), indent=1))
+        print_json(result, indent=1)
         return
     for key in ("a", "b"):
         side = result[key]

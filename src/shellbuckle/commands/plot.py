@@ -100,7 +100,7 @@ def _cmd(args) -> int:
     runs = [_run(d) for d in args.dirs]
     potato = (_run(args.potato), _run(args.capsule)) if args.potato is not None else None
     pair = tuple(_run(d) for d in args.pair) if args.pair is not None else None
-    reference = paper.load_reference(args.reference)
+    reference = paper.load_reference(args.reference, required=False)
     out = Path(args.out)
     written: list[Path] = []
 

@@ -1,4 +1,5 @@
-"""``shellbuckle report DIR... [--out FILE] [--format md|html]``: the reproduction report."""
+"""``shellbuckle report DIR... [--out FILE] [--format md|html]``: the reproduction report
+(:func:`shellbuckle.studies.quilliet2008.report.write_report`)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,9 @@ def register(sub) -> None:
         description="Collect the runs in DIR... (run folders, sweep folders, or folders of run "
                     "folders; nothing is recomputed), fit the buckling thresholds vs gamma and "
                     "write a report that puts our numbers next to every number of the paper's "
-                    "reference file (reference/quilliet2008.json): difference, verdict, the "
-                    "disagreements, the paper's inconsistent gamma/d-R captions, the figures "
-                    "and the provenance of every run.")
+                    "reference file (shipped as shellbuckle/data/quilliet2008.json): "
+                    "difference, verdict, the disagreements, the paper's inconsistent "
+                    "gamma/d-R captions, the figures and the provenance of every run.")
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep folder")
     parser.add_argument("--out", default=None,
                         help="report file (default: reproduction_report.md or .html)")
@@ -28,7 +29,7 @@ def register(sub) -> None:
 def _cmd(args) -> int:
     from pathlib import Path
 
-    from shellbuckle.report import write_report
+    from ..studies.quilliet2008.report import write_report
 
     fmt = args.fmt
     if fmt is None:

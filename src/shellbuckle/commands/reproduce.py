@@ -1,6 +1,7 @@
 """``shellbuckle reproduce-paper``: the paper's study as a sweep, then figures and report.
 
-A thin layer over :func:`shellbuckle.reproduce.reproduce_paper`; see ``docs/reproduce.md``.
+A thin layer over :func:`shellbuckle.studies.quilliet2008.reproduce.reproduce_paper`; see
+``docs/reproduce.md``.
 """
 
 from __future__ import annotations
@@ -8,10 +9,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ._options import add_convention_option, add_protocol_options, values
+
 
 def register(sub) -> None:
-    from ..params import ENERGY_CONVENTIONS
-
     parser = sub.add_parser(
         "reproduce-paper", help="run the paper's study (sweep on Dask), write figures and report",
         description="Run Quilliet et al. (2008)'s simulations as a resumable Dask sweep: every "
@@ -33,15 +34,10 @@ def register(sub) -> None:
     parser.add_argument("--vertices", type=int, nargs="+", metavar="N",
                         help="randomized mesh size(s) (default 3594; several: a mesh-"
                              "convergence study, e.g. --vertices 3594 10000 20000)")
-    parser.add_argument("--until", type=float, metavar="DV",
-                        help="last target dV/V (default 0.95; runs stop at self-contact)")
-    parser.add_argument("--dv", type=float, help="volume step / V0 (default 0.019)")
+    add_protocol_options(parser, ("until", "dv"))
     parser.add_argument("--path-increments", type=int, metavar="N",
                         help="gamma increments of the Fig. 11 path (default 8)")
-    parser.add_argument("--energy-convention", choices=list(ENERGY_CONVENTIONS),
-                        metavar="{" + ",".join(ENERGY_CONVENTIONS) + "}",
-                        help="which bending energy kappa multiplies in every run (default "
-                             "helfrich; see shellbuckle deflate --help)")
+    add_convention_option(parser)
     parser.add_argument("--compare-conventions", action="store_true",
                         help="run the study under each energy convention (helfrich, paper, "
                              "evolver-modulus) in OUT/<convention>/, special runs for every "
@@ -66,15 +62,11 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    from ..reproduce import Study, reproduce_paper
+    from ..studies.quilliet2008.reproduce import Study, reproduce_paper
 
     given = {}
     if args.gammas is not None:
-        try:
-            given["gammas"] = tuple(float(g) for g in args.gammas.split(",") if g.strip())
-        except ValueError:
-            raise ValueError(f"--gammas must be comma-separated numbers, got "
-                             f"{args.gammas!r}") from None
+        given["gammas"] = tuple(values("--gammas", args.gammas))
     for option, name in (("seeds", "seeds"), ("until", "until"), ("dv", "dv"),
                          ("path_increments", "path_increments")):
         if getattr(args, option) is not None:
@@ -103,7 +95,7 @@ def _cmd(args) -> int:
         if args.energy_convention is not None:
             raise ValueError("--compare-conventions runs every convention; do not give "
                              f"--energy-convention (got {args.energy_convention!r})")
-        from ..convention_study import COMPARISON_MD, compare_conventions
+        from ..studies.quilliet2008.conventions import COMPARISON_MD, compare_conventions
 
         data = compare_conventions(args.out, study, workers=args.workers,
                                    scheduler=args.scheduler, progress=not args.quiet,

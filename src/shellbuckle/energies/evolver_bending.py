@@ -75,6 +75,9 @@ class StarPerpBending:
     docstring for ``h_i`` and ``S_i``. Faces must be oriented outwards (then ``h = +1/R`` on a
     sphere); Evolver measures ``h`` along the facets' own orientation.
 
+    ``value(X) -> float``, ``gradient(X) -> (V, 3)``, ``hessian(X) -> csr (3V, 3V)`` (exact,
+    not projected), ``mean_curvature(X) -> (V,)``.
+
     Parameters
     ----------
     faces : (F, 3) int
@@ -87,9 +90,6 @@ class StarPerpBending:
         (Evolver's ``h_zero`` parameter or vertex attribute is ``c0 / 2``).
     vertices : (k,) int or None
         Vertices whose term is counted (a non-global Evolver quantity); ``None`` means all.
-
-    ``value(X) -> float``, ``gradient(X) -> (V, 3)``, ``hessian(X) -> csr (3V, 3V)`` (exact,
-    not projected), ``mean_curvature(X) -> (V,)``.
     """
 
     faces: np.ndarray

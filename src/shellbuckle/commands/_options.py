@@ -1,0 +1,264 @@
+"""Options that several commands share, declared once: the shell, the protocol, threads, steps.
+
+The defaults shown in the help are read from the library (:data:`shellbuckle.run.MAIN_JOB_GAMMA`,
+the fields of :class:`~shellbuckle.protocol.deflate.Protocol` and the arguments of
+:meth:`Protocol.paper`), and the options themselves default to None, so that a command can
+tell an option given from one left out: ``deflate`` then lets the library's defaults apply,
+``continue`` keeps the stored run's. ``sweep`` declares the same options as comma-separated
+lists (``listed=True``), read with :func:`values`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from functools import lru_cache
+
+#: 2D Poisson ratio of every command's default shell (an incompressible material).
+DEFAULT_NU = 1.0 / 3.0
+
+NU_HELP = ("2D Poisson ratio nu in (-1, 1); a 3D material gives nu <= 1/3 (larger values are "
+           "warned about) and d/R needs nu < 1/2 (default 1/3, incompressible)")
+
+
+def default_gamma() -> float:
+    """The one default gamma of the command line: the main job's (it wrinkles)."""
+    from ..run import MAIN_JOB_GAMMA
+
+    return MAIN_JOB_GAMMA
+
+
+def gamma_help() -> str:
+    return (f"Foppl-von Karman number gamma = A R^2/kappa, > 0 (default {default_gamma():g}, "
+            "the main job: a capsule that turns polygonal, then wrinkles)")
+
+
+def _listed(text: str, listed: bool) -> str:
+    return f"comma-separated list of: {text}" if listed else text
+
+
+# --------------------------------------------------------------------------- the shell
+
+def add_shell_options(parser, *, material: bool = True, listed: bool = False,
+                      defaults: bool = False, convention_default=None) -> None:
+    """``--gamma --nu`` (with ``material``: or ``--E --sigma --d --R``) and
+    ``--energy-convention``. With ``defaults`` the options hold the default shell's values
+    (a command without a material); otherwise None, resolved by :func:`params_from_args`."""
+    if material:
+        parser = parser.add_argument_group(
+            "shell parameters (either gamma and nu, or a 3D material)")
+    kind = str if listed else float
+    parser.add_argument("--gamma", type=kind, metavar="G,.." if listed else None,
+                        default=default_gamma() if defaults else None,
+                        help=_listed(gamma_help(), listed))
+    parser.add_argument("--nu", type=kind, metavar="NU,.." if listed else None,
+                        default=DEFAULT_NU if defaults else None, help=_listed(NU_HELP, listed))
+    if material:
+        parser.add_argument("--E", type=float, help="3D Young modulus of the material")
+        parser.add_argument("--sigma", type=float,
+                            help="3D Poisson ratio of the material, in (-1, 0.5]")
+        parser.add_argument("--d", type=float, help="shell thickness")
+        parser.add_argument("--R", type=float, help="shell radius (with --E --sigma --d)")
+    add_convention_option(parser, default=convention_default, listed=listed)
+
+
+def add_convention_option(parser, default=None, listed: bool = False) -> None:
+    from ..params import CONVENTION_HELP, ENERGY_CONVENTIONS
+
+    if listed:
+        parser.add_argument("--energy-convention", metavar="C,..",
+                            help=_listed(CONVENTION_HELP, listed))
+        return
+    parser.add_argument("--energy-convention", choices=list(ENERGY_CONVENTIONS),
+                        default=default, metavar="{" + ",".join(ENERGY_CONVENTIONS) + "}",
+                        help=CONVENTION_HELP)
+
+
+def params_from_args(args, fallback=None):
+    """The shell of ``--gamma --nu`` or of the material ``--E --sigma --d --R``; without them,
+    ``fallback`` if given, else gamma = :func:`default_gamma`, nu = 1/3."""
+    from ..params import DEFAULT_CONVENTION, ShellParameters
+
+    material = [args.E, args.sigma, args.d, args.R]
+    convention = getattr(args, "energy_convention", None) or DEFAULT_CONVENTION
+    if any(v is not None for v in material):
+        if any(v is None for v in material):
+            raise ValueError("a material needs all of --E, --sigma, --d and --R")
+        if args.gamma is not None or args.nu is not None:
+            raise ValueError("give either --gamma/--nu or the material --E --sigma --d --R, "
+                             "not both")
+        return ShellParameters.from_material(args.E, args.sigma, args.d, args.R,
+                                             energy_convention=convention)
+    if fallback is not None and args.gamma is None and args.nu is None:
+        return fallback
+    gamma = args.gamma if args.gamma is not None else (
+        fallback.gamma if fallback else default_gamma())
+    nu = args.nu if args.nu is not None else (fallback.nu if fallback else DEFAULT_NU)
+    return ShellParameters.from_gamma(gamma, nu=nu, energy_convention=convention)
+
+
+# --------------------------------------------------------------------------- the protocol
+
+@dataclasses.dataclass(frozen=True)
+class _Option:
+    """One protocol option: its flag, the Protocol field it sets, what it is (``help``) and its
+    default (``default``, the words in parentheses after the help; empty for none), its type,
+    choices and metavar in a list; a switch (store_true) sets the field to ``value``."""
+
+    flag: str
+    field: str
+    help: str
+    default: str = ""
+    type: object = float
+    value: object = None
+    choices: tuple = ()
+    metavar: str = ""
+
+
+@lru_cache(maxsize=1)
+def protocol_defaults() -> dict:
+    """The protocol's defaults: the fields of :class:`Protocol` and the ``dv``/``until`` of
+    :meth:`Protocol.paper`, with the jiggle's default temperature."""
+    from ..protocol.deflate import DEFAULT_TEMPERATURE, Protocol
+
+    out = {f.name: f.default for f in dataclasses.fields(Protocol)
+           if f.default is not dataclasses.MISSING}
+    out |= {name: p.default for name, p in inspect.signature(Protocol.paper).parameters.items()
+            if p.default is not inspect.Parameter.empty}
+    out["temperature"] = DEFAULT_TEMPERATURE
+    return out
+
+
+@lru_cache(maxsize=1)
+def _options() -> dict:
+    from ..energies.total import BENDING_KINDS
+    from ..protocol.deflate import METHODS
+    from ..protocol.schedule import MAX_DV_OVER_V
+
+    d = protocol_defaults()
+    options = [
+        _Option("--seed", "seed", "random seed of the mesh and the jiggle, >= 0",
+                f"default {d['seed']}", type=int, metavar="S,.."),
+        _Option("--dv", "dv", "volume step / V0, in (0, 0.5]", f"default {d['dv']:g}",
+                metavar="DV,.."),
+        _Option("--until", "until", f"last target dV/V, below {MAX_DV_OVER_V:g}",
+                f"default {d['until']:g}; the run stops earlier at self-contact",
+                metavar="U,.."),
+        _Option("--schedule", "schedule", "comma-separated target dV/V values instead of "
+                "--dv/--until", type=str),
+        _Option("--pressures", "pressures", "pressure control: comma-separated external "
+                "overpressures (units kappa/R^3), one per step, instead of a volume schedule",
+                type=str),
+        _Option("--no-c0-cycle", "c0_cycle", "skip the zero-spontaneous-curvature cycle, "
+                "which gives the paper's 'potato' shapes", value=False),
+        _Option("--temperature", "temperature", "jiggle temperature on Surface Evolver's "
+                "scale, in [0, 1]: displacements of std 0.28 T times the size of the initial "
+                "surface", f"default {d['temperature']:g}, as Surface Evolver: 0.028 R",
+                metavar="T,.."),
+        _Option("--jiggle", "jiggle", "jiggle amplitude as a fraction of the mean edge "
+                "length, in [0, 0.5], instead of --temperature", metavar="J,.."),
+        _Option("--bending", "bending", "bending discretization, one of "
+                f"{', '.join(BENDING_KINDS)}", f"default {d['bending']}; a Surface Evolver "
+                "--mesh file that bends with star_perp_sq_mean_curvature brings evolver",
+                type=str, choices=BENDING_KINDS, metavar="B,.."),
+        _Option("--method", "method", f"minimizer, one of {', '.join(METHODS)} (alternate: "
+                "CG then Newton, as the paper)", f"default {d['method']}", type=str,
+                choices=METHODS, metavar="M,.."),
+        _Option("--max-iter", "max_iter", "Newton steps (factorizations) of each "
+                "minimization at most, or iterations with --method cg/gd",
+                f"default {d['max_iter']}; a small budget with --method cg quenches as a fixed "
+                "Surface Evolver script", type=int),
+        _Option("--c0", "c0", "spontaneous curvature c = c1 + c2", "default 2/R"),
+        _Option("--no-prerelax", "prerelax", "start each Newton minimization at once, "
+                "without the relaxation preconditioned by the step's starting state: slower, "
+                "for comparisons", value=False),
+        _Option("--no-direct-return", "direct_return", "after the zero-curvature cycle "
+                "always minimize from the flat minimum, never from the minimum before the "
+                "cycle: slower, for comparisons", value=False),
+    ]
+    return {o.field: o for o in options}
+
+
+def add_protocol_options(parser, names, *, listed: bool = False, inherited: bool = False,
+                         flags: dict | None = None) -> None:
+    """Add the protocol options ``names`` (Protocol fields, plus ``dv``, ``until``,
+    ``schedule``, ``pressures``) to ``parser``; each defaults to None. ``listed``: as
+    comma-separated lists (a sweep's axes). ``inherited``: a continued run keeps the stored
+    run's value of an option left out, which the help says. ``flags`` renames options
+    (a sweep's ``{"seed": "--seeds"}``)."""
+    options = _options()
+    for name in names:
+        o = options[name]
+        flag = (flags or {}).get(name, o.flag)
+        default = "default: the run's" if inherited else o.default
+        help_text = f"{o.help} ({default})" if default else o.help
+        if o.value is not None:
+            parser.add_argument(flag, action="store_true", help=help_text)
+        elif listed and o.metavar:
+            parser.add_argument(flag, metavar=o.metavar, help=_listed(help_text, True))
+        else:
+            parser.add_argument(flag, type=o.type, choices=list(o.choices) or None,
+                                help=help_text)
+
+
+def protocol_values(args, names) -> dict:
+    """The protocol options among ``names`` given on the command line, as Protocol fields
+    (a switch given sets its field; ``--no-c0-cycle`` gives ``c0_cycle=False``)."""
+    options = _options()
+    out = {}
+    for name in names:
+        o = options[name]
+        given = getattr(args, o.flag[2:].replace("-", "_"))
+        if o.value is not None:
+            if given:
+                out[o.field] = o.value
+        elif given is not None:
+            out[o.field] = given
+    return out
+
+
+def values(option: str, text: str, kind=float) -> list:
+    """The comma-separated values of ``option`` as ``kind`` (``int``, ``float`` or ``str``;
+    integers also as inclusive ranges ``a-b``); empty items are skipped. ValueError naming the
+    item that is not a ``kind``."""
+    out = []
+    for item in (part.strip() for part in text.split(",")):
+        if not item:
+            continue
+        try:
+            if kind is int and "-" in item[1:]:
+                low, high = (int(x) for x in item.split("-", 1))
+                if high < low:
+                    raise ValueError
+                out.extend(range(low, high + 1))
+            else:
+                out.append(kind(item))
+        except ValueError:
+            what = {int: "an integer (or a range a-b)", float: "a number"}.get(kind, "a name")
+            raise ValueError(f"{option}: {item!r} is not {what}") from None
+    return out
+
+
+# --------------------------------------------------------------------------- runs and steps
+
+def add_threads_option(parser) -> None:
+    parser.add_argument("--threads", type=int,
+                        help="threads of the sparse factorization (default: the cores this "
+                             "process may use, or MKL_NUM_THREADS); one thread runs PARDISO's "
+                             "faster plain mode, several its reproducible mode (the same bits "
+                             "on any number); a run keeps its mode when resumed")
+
+
+def add_run_output_options(parser) -> None:
+    """``--no-plot`` and ``--quiet`` of the commands that make or extend a run."""
+    parser.add_argument("--no-plot", action="store_true",
+                        help="do not write the figure at the end")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def stored_step(run, k: int, option: str = "--step") -> int:
+    """:meth:`shellbuckle.run.Run.step` for a command-line option: the message names it."""
+    try:
+        return run.step(k)
+    except ValueError as exc:
+        raise ValueError(f"{option} {k}: {exc}") from None

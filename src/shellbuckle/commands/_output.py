@@ -1,0 +1,36 @@
+"""What the commands print about a run they made or extended, and JSON on stdout."""
+
+from __future__ import annotations
+
+import json
+
+
+def report_run(run, *, plot: bool = False) -> int:
+    """Print the run folder, its status and its last step; along a path in gamma or c0 (the
+    run's protocol control) the step's gamma and c0, otherwise its pressure. With ``plot``,
+    write the run figure (``deflation.png`` in the run folder) and name it. Returns 0."""
+    last = run.table.iloc[-1]
+    print(f"run folder: {run.path}")
+    print(f"status: {run.status} ({run.store.meta.get('message')})")
+    if run.protocol.control in ("gamma", "c0"):
+        print(f"steps: {int(last['step'])}, gamma = {run.params_at(-1).gamma:.6g}, "
+              f"c0 = {run.c0_at(-1):.6g}, dV/V = {last['dV_over_V']:.4f}, "
+              f"E/kappa = {last['E_over_kappa']:.6g}")
+    else:
+        print(f"steps: {int(last['step'])}, dV/V = {last['dV_over_V']:.4f}, "
+              f"E/kappa = {last['E_over_kappa']:.6g}, pressure = {last['pressure']:.6g}")
+    if plot:
+        from ..plots.run import plot_deflation
+
+        path = run.path / "deflation.png"
+        plot_deflation(run, path=path)
+        print(f"figure: {path}")
+    return 0
+
+
+def print_json(value, indent=None) -> int:
+    """Print ``value`` as strict JSON (non-finite numbers as null). Returns 0."""
+    from ..util import json_safe
+
+    print(json.dumps(json_safe(value), indent=indent))
+    return 0

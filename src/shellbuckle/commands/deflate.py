@@ -1,0 +1,139 @@
+"""``shellbuckle deflate``: the paper's deflation protocol, stored step by step (the main job).
+
+``deflate --from DIR --step K`` is kept as another spelling of ``shellbuckle continue DIR
+--step K`` along a volume path: it calls the same code (:func:`.continue_.continue_run`).
+"""
+
+from __future__ import annotations
+
+from ._options import (add_protocol_options, add_run_output_options, add_shell_options,
+                       add_threads_option, default_gamma, params_from_args, protocol_defaults,
+                       protocol_values, values)
+
+#: The protocol options of a deflation (Protocol fields, and dv, until, schedule, pressures).
+PROTOCOL = ("seed", "dv", "until", "schedule", "pressures", "c0_cycle", "temperature", "jiggle",
+            "bending", "method", "max_iter", "c0", "prerelax", "direct_return")
+#: Options of a new shell or mesh, which a continued run takes from the stored one.
+NEW_SHELL = ("gamma", "nu", "E", "sigma", "d", "R", "energy_convention", "vertices",
+             "icosphere", "mesh", "pressures", "bending", "c0")
+#: Vertices of the default mesh: the paper's randomized sphere.
+DEFAULT_VERTICES = 3594
+
+
+def register(sub) -> None:
+    parser = sub.add_parser(
+        "deflate", help="deflate a shell with the paper's protocol (the main job)",
+        description="Stepwise deflation at fixed enclosed volume (Quilliet et al. 2008, §4.1): "
+                    "at each volume step jiggle, minimize, and run the zero-spontaneous-"
+                    "curvature cycle; stop at self-intersection. Every finished step is stored "
+                    "in --out; an interrupted run continues with `shellbuckle resume DIR`. "
+                    f"With no options: gamma = {default_gamma():g}, nu = 1/3 on a randomized "
+                    f"{DEFAULT_VERTICES}-vertex mesh (a capsule that turns polygonal, then "
+                    "wrinkles).")
+    add_shell_options(parser)
+    mesh = parser.add_argument_group(f"mesh (default: randomized sphere, {DEFAULT_VERTICES} "
+                                     "vertices)")
+    mesh.add_argument("--vertices", type=int, help="vertices of the randomized sphere mesh")
+    mesh.add_argument("--icosphere", type=int, metavar="N",
+                      help="icosahedral sphere with edges divided in N (10 N^2 + 2 vertices)")
+    mesh.add_argument("--mesh", metavar="FILE",
+                      help="start from a mesh file (.fe/.dmp bring their own moduli, h_zero, "
+                           "poisson_ratio and form_factors; or any meshio format)")
+    add_protocol_options(parser.add_argument_group("protocol"), PROTOCOL)
+    branch = parser.add_argument_group(
+        "continue from a stored step (another spelling of `shellbuckle continue DIR --step K` "
+        "along a volume path)")
+    branch.add_argument("--from", dest="from_run", metavar="DIR",
+                        help="start from a step of the run in DIR (its reference sphere, "
+                             "parameters and protocol options are kept unless given; give "
+                             "--dv/--until or --schedule, e.g. --dv -0.019 to re-inflate)")
+    branch.add_argument("--step", type=int, default=-1,
+                        help="the step of --from to start from (default: the last)")
+    parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
+    add_threads_option(parser)
+    add_run_output_options(parser)
+    parser.set_defaults(func=_cmd)
+
+
+def _cmd(args) -> int:
+    from ..solve.linear import check_threads
+
+    if args.threads is not None:
+        check_threads(args.threads)
+    if args.from_run is not None:
+        from .continue_ import continue_run
+
+        return continue_run(_as_continue(args))
+    from ..run import deflate
+
+    options = _protocol(args)
+    mesh, params, from_file = _shell(args, options.get("seed", protocol_defaults()["seed"]))
+    options.setdefault("bending", from_file.get("bending"))
+    options.setdefault("c0", from_file.get("c0"))
+    options = {k: v for k, v in options.items() if v is not None}
+    run = deflate(mesh, params, out=args.out, progress=not args.quiet,
+                  form_factors=from_file.get("form_factors"), threads=args.threads, **options)
+    from ._output import report_run
+
+    return report_run(run, plot=not args.no_plot)
+
+
+def _protocol(args) -> dict:
+    """The protocol options given, checked (a Protocol is built) before any mesh is."""
+    from ..protocol.deflate import Protocol
+
+    choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
+    if sum(choices) > 1:
+        raise ValueError("give only one of --vertices, --icosphere and --mesh")
+    options = protocol_values(args, PROTOCOL)
+    for name in ("schedule", "pressures"):
+        if name in options:
+            options[name] = values(f"--{name}", options[name]) or None
+    if options.get("schedule") is not None and options.get("pressures") is not None:
+        raise ValueError("give either --schedule or --pressures, not both")
+    fields = {k: v for k, v in options.items() if k not in ("dv", "until", "schedule",
+                                                           "pressures")}
+    if options.get("pressures") is not None:
+        Protocol(schedule=tuple(options["pressures"]), control="pressure", **fields)
+    elif options.get("schedule") is not None:
+        Protocol(schedule=tuple(options["schedule"]), **fields)
+    else:
+        Protocol.paper(**{k: options[k] for k in ("dv", "until") if k in options}, **fields)
+    return options
+
+
+def _shell(args, seed: int):
+    """The starting mesh, the shell parameters and what a mesh file says about the shell."""
+    from ..mesh import icosphere
+    from ..mesh.random_sphere import random_sphere
+    from ..run import params_for_mesh, shell_from_file
+
+    if args.mesh is not None:
+        mesh, from_file = shell_from_file(args.mesh)
+        if args.E is not None:
+            return mesh, params_from_args(args), from_file
+        return mesh, params_for_mesh(mesh, from_file, args.gamma, args.nu,
+                                     energy_convention=args.energy_convention), from_file
+    params = params_from_args(args)
+    if args.icosphere is not None:
+        return icosphere(args.icosphere, R=params.R), params, {}
+    vertices = DEFAULT_VERTICES if args.vertices is None else args.vertices
+    return random_sphere(vertices, seed=seed, R=params.R), params, {}
+
+
+def _as_continue(args):
+    """The ``continue`` arguments that ``deflate --from DIR`` stands for (a volume path)."""
+    import argparse
+
+    for name in NEW_SHELL:
+        if getattr(args, name) is not None:
+            option = name.replace("_", "-")
+            raise ValueError(f"--{option} cannot be combined with --from: the run continues "
+                             "with the stored mesh, parameters and energy")
+    if args.out is None:
+        raise ValueError("--from needs --out: the new run gets its own folder")
+    given = {name: getattr(args, name) for name in vars(args)}
+    return argparse.Namespace(**given | {
+        "dir": args.from_run, "gamma": None, "c0": None, "increments": None,
+        "then_deflate_to": None, "then_out": None, "compare": None, "compare_step": None,
+        "json": False})

@@ -1,0 +1,24 @@
+"""``shellbuckle resume DIR``: continue an interrupted run from its last finished step."""
+
+from __future__ import annotations
+
+from ._options import add_run_output_options, add_threads_option
+
+
+def register(sub) -> None:
+    parser = sub.add_parser("resume", help="continue a stored run from its last finished step",
+                            description="Continue the run in DIR from its last finished step; "
+                                        "the result is the same as an uninterrupted run (its "
+                                        "protocol is the stored one).")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    add_threads_option(parser)
+    add_run_output_options(parser)
+    parser.set_defaults(func=_cmd)
+
+
+def _cmd(args) -> int:
+    from ..run import resume
+    from ._output import report_run
+
+    return report_run(resume(args.dir, progress=not args.quiet, threads=args.threads),
+                      plot=not args.no_plot)

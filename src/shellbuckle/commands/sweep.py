@@ -1,0 +1,87 @@
+"""``shellbuckle sweep [--config FILE.toml] [--gamma G,..] ... --out DIR``: runs on Dask."""
+
+from __future__ import annotations
+
+import sys
+
+from ._options import add_protocol_options, add_shell_options, default_gamma, values
+
+#: The protocol axes of a sweep (SweepSpec fields), as comma-separated lists.
+PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
+#: Each list option's kind; the names are SweepSpec's fields.
+KINDS = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
+         "dv": float, "until": float, "jiggle": float, "temperature": float, "bending": str,
+         "method": str, "energy_convention": str}
+
+
+def register(sub) -> None:
+    parser = sub.add_parser(
+        "sweep", help="run a grid of deflations in parallel on Dask, resumable, with a catalogue",
+        description="Run every combination of the given values (gamma x nu x mesh x seeds x "
+                    "protocol options) as one deflation, each in its own run folder in DIR named "
+                    "from its parameters (e.g. g2333_nu0.333_v3594_s0), on a local Dask cluster "
+                    "of single-threaded workers (default: one per core) or on the Dask scheduler "
+                    "at ADDR. DIR/catalogue.csv (one row per run: parameters, status, steps, "
+                    "final dV/V, stop reason, thresholds, W, wall time) is rewritten as runs "
+                    "finish. Running the same command again skips finished runs, resumes "
+                    "unfinished ones from their last step and retries failed ones. Lists are "
+                    "comma-separated; integer lists also take ranges (0-4). Values on the "
+                    "command line replace those of --config; what neither gives takes the "
+                    "defaults of `shellbuckle deflate`.")
+    parser.add_argument("--config", metavar="FILE.toml", help="sweep file (see examples/sweep.toml)")
+    add_shell_options(parser, material=False, listed=True)
+    parser.add_argument("--vertices", metavar="N,..",
+                        help="randomized spheres with N vertices (default 3594 unless --icosphere)")
+    parser.add_argument("--icosphere", metavar="N,..",
+                        help="icosahedral spheres of level N (10 N^2 + 2 vertices)")
+    add_protocol_options(parser, PROTOCOL, listed=True, flags={"seed": "--seeds"})
+    add_protocol_options(parser, ("c0_cycle",))
+    parser.add_argument("--workers", metavar="N", help="local worker processes (default: cores)")
+    parser.add_argument("--scheduler", metavar="ADDR",
+                        help="address of a running Dask scheduler (e.g. tcp://host:8786)")
+    parser.add_argument("--no-analysis", action="store_true",
+                        help="do not classify the steps of finished runs (no thresholds or W)")
+    parser.add_argument("--no-retry", action="store_true", help="do not rerun failed runs")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--out", required=True, metavar="DIR", help="sweep folder")
+    parser.set_defaults(func=_cmd)
+
+
+def _cmd(args) -> int:
+    from pathlib import Path
+
+    from ..sweep import SweepSpec, check_scheduler, run_sweep
+
+    given = {name: values(f"--{name.replace('_', '-')}", getattr(args, name), kind)
+             for name, kind in KINDS.items() if getattr(args, name) is not None}
+    if args.no_c0_cycle:
+        given["c0_cycle"] = False
+    workers = _workers(args)
+    check_scheduler(args.scheduler)
+    defaults = {"gamma": [default_gamma()]}  # the one default gamma of the command line
+    spec = (SweepSpec.from_toml(args.config, defaults=defaults, **given) if args.config
+            else SweepSpec.from_dict(defaults | given))
+    catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
+                          progress=not args.quiet, analyze=not args.no_analysis,
+                          retry_failed=not args.no_retry)
+    counts = catalogue["status"].value_counts()
+    print(f"sweep {args.out}: {len(catalogue)} runs; "
+          + ", ".join(f"{status} {n}" for status, n in counts.items()))
+    print(f"catalogue: {Path(args.out) / 'catalogue.csv'}")
+    failed = catalogue[catalogue["status"] == "failed"]
+    for _, row in failed.iterrows():
+        print(f"  failed: {row['name']}: {row['message']}", file=sys.stderr)
+    return 1 if len(failed) else 0
+
+
+def _workers(args) -> int | None:
+    """``--workers N`` (one integer >= 1, for the local cluster only), or None."""
+    if args.workers is None:
+        return None
+    workers = values("--workers", args.workers, int)
+    if len(workers) != 1 or workers[0] < 1:
+        raise ValueError(f"--workers: {args.workers!r} must be one integer >= 1")
+    if args.scheduler is not None:
+        raise ValueError("--workers applies to the local cluster; a --scheduler has its "
+                         "own workers")
+    return workers[0]
