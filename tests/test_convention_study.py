@@ -99,3 +99,26 @@ def test_each_sensitivity_variant_changes_one_thing_from_the_base():
         assert differ == set(change), name
         point = spec.points()[0]
         assert cs._variant_of(point | {"temperature": point["temperature"]}) == name
+
+
+def test_the_sensitivity_table_counts_finished_runs_only():
+    import pandas as pd
+
+    def row(seed, status, primary):
+        return {"gamma": 2333.0, "energy_convention": "paper", "n_vertices": 3594,
+                "method": "newton", "bending": "juelicher", "temperature": 0.01, "seed": seed,
+                "status": status, "primary_dV_over_V": primary,
+                "axisymmetry_loss_dV_over_V": 0.3, "wrinkles_dV_over_V": float("nan"),
+                "W_mean": 5.0, "stop_dV_over_V": 0.8}
+
+    frame = pd.DataFrame([row(0, "finished", 0.02), row(1, "finished", 0.04),
+                          row(2, "running", 0.9)])
+    table = cs.sensitivity_table([frame])
+    assert len(table) == 1
+    r = table.iloc[0]
+    assert r["variant"] == "jiggle T 0.01" and r["runs"] == 2
+    assert r["primary_dV_over_V_mean"] == pytest.approx(0.03)
+    assert r["primary_dV_over_V_std"] == pytest.approx(math.sqrt(2) * 0.01)
+    assert r["wrinkles_dV_over_V_n"] == 0
+    text = cs.sensitivity_markdown(table)
+    assert "primary buckling" in text and "none (0/2)" in text
