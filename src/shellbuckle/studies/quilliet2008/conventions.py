@@ -653,6 +653,8 @@ def sensitivity_markdown(table: pd.DataFrame) -> str:
         n, m, s = r[f"{column}_n"], r[f"{column}_mean"], r[f"{column}_std"]
         if n == 0:
             return f"none (0/{r['runs']})"
+        if math.isfinite(s) and s <= 1e-9 * max(abs(m), 1.0):
+            s = 0.0  # equal values up to round-off
         text = f"{m:.3g}" + (f" ± {s:.2g}" if math.isfinite(s) else "")
         return text + (f" ({n}/{r['runs']})" if n < r["runs"] else "")
 
