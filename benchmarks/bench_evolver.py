@@ -60,7 +60,8 @@ threshold), and past the threshold, the minimum each code reaches depends on its
 searches, how it leaves the unstable symmetric branch), so different local minima are
 possible; the ``dx`` column and the shape table (``shellbuckle.analysis.classify``: class,
 dents, dent depth, rim radius, angle between the two dent axes) show it.
-Measured results and their reading: ``docs/evolver_comparison.md``.
+Current numbers: ``docs/surface-evolver.md``; every measurement and its reading:
+``benchmarks/results/evolver_comparison_history.md``.
 
 **Time to the same tolerance** (``--to-tolerance``, with ``--confirm 1``). The two codes stop
 on different tests: shellbuckle on its relative projected-gradient residual (``--tol``, 1e-9),
