@@ -13,6 +13,12 @@ Protocol (Quilliet et al., EPJE 27, 13 (2008), §4.1), one volume step ``k``:
 5. measure self-contact; stop at self-intersection of the surface (the paper stopped at 7-11 %
    of V0) or at the end of the schedule.
 
+A step whose minimizations leave the physical domain (the surface turned inside out or grown
+beyond 8 V0, a face flipped over, a non-finite energy, gradient or multiplier, an energy far
+above that of the reference sphere scaled to the same volume: :func:`domain_exit`) raises
+:class:`LeftDomain` instead of returning a record: the run fails there
+(:func:`shellbuckle.run.deflate`).
+
 A path in parameter space at fixed volume uses the same step with ``control = "gamma"`` or
 ``"c0"``: step ``k`` holds the enclosed volume at ``fixed_dV_over_V`` and sets the Foppl-von
 Karman number (``A = gamma kappa / R^2``; kappa, R and the rest state unchanged) or the
@@ -412,6 +418,96 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                     max_iter=p.max_iter, **options)
 
 
+MAX_VOLUME_RATIO = 8.0
+"""The largest enclosed volume of the physical domain, in units of the reference volume V0:
+the reference sphere of twice the radius (a linear strain of 100 %, far outside thin-shell
+elasticity; :func:`domain_exit`)."""
+
+ENERGY_BOUND_FACTOR = 10.0
+"""A step whose energy exceeds this many times the energy of the reference sphere uniformly
+scaled to the step's enclosed volume (plus the bending energy 8 pi kappa of a sphere) has left
+the physical domain (:func:`domain_exit`)."""
+
+
+class LeftDomain(RuntimeError):
+    """A step left the physical domain (:func:`domain_exit`): the run fails there and the
+    step is not stored. ``step`` is the step, ``reason`` what left the domain."""
+
+    def __init__(self, step: int, reason: str):
+        super().__init__(f"step {step} left the physical domain: {reason}")
+        self.step = step
+        self.reason = reason
+
+
+def inverted_faces(X: np.ndarray, topology) -> np.ndarray:
+    """The faces whose normal points against the normals of all their edge neighbours (the
+    angle between the outward normals above 90 degrees at each of the three edges): a
+    triangle flipped over, whose orientation no longer follows the surface's (the reference
+    sphere's outward one). Converged shells stay far from it: the sharpest ridges of the
+    wrinkled regime bend one edge of a face by up to 145 degrees, never all three."""
+    corners = X[topology.faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    faces = topology.edge_faces
+    cosine = np.einsum("ij,ij->i", normals[faces[:, 0]], normals[faces[:, 1]])
+    return np.flatnonzero((cosine[topology.face_edges] < 0).all(axis=1))
+
+
+def domain_exit(ctx: Context, X: np.ndarray, E: float | None = None, *, grad_norm=None,
+                pressure=None, thorough: bool = True, faces: bool = True) -> str | None:
+    """Why the conformation ``X`` is outside the physical domain of a run, or None.
+
+    Outside: non-finite positions, energy ``E`` (default: computed), ``grad_norm`` or
+    ``pressure`` (the multiplier); an enclosed volume ``V`` outside ``(0, MAX_VOLUME_RATIO
+    V0]`` (``V <= 0``: the surface turned inside out); with ``thorough``, also a face flipped
+    against its neighbours (:func:`inverted_faces`; unless ``faces`` is False) or an energy
+    above ``ENERGY_BOUND_FACTOR (E_s + 8 pi kappa)``, where ``E_s`` is the energy of the
+    reference sphere uniformly scaled to the volume ``V``: an admissible state at that volume,
+    so the minimum there lies below it (the unbuckled shell is at it, a buckled one far below).
+    Energies in the run's units. In the stored runs of our studies (6276 steps, 224 runs) the
+    largest energy was 0.57 (E_s + 8 pi kappa), and the only flipped faces were two in the last
+    step of a run that ended at self-intersection (gamma = 7465, dV/V = 0.836; the protocol
+    does not ask about faces there, see :func:`step`)."""
+    if not np.isfinite(X).all():
+        return "non-finite vertex positions"
+    V = ctx.volume.value(X)
+    if not np.isfinite(V):
+        return f"non-finite enclosed volume {V!r}"
+    if V <= 0:
+        return (f"the enclosed volume changed sign (V = {V:.6g}, V0 = {ctx.V0:.6g}): the "
+                f"surface turned inside out")
+    if V > MAX_VOLUME_RATIO * ctx.V0:
+        return (f"the enclosed volume V = {V:.6g} exceeds {MAX_VOLUME_RATIO:g} V0 = "
+                f"{MAX_VOLUME_RATIO * ctx.V0:.6g} (dV/V = {1.0 - V / ctx.V0:.6g})")
+    E = ctx.energy.value(X) if E is None else float(E)
+    for name, value in (("energy", E), ("gradient norm", grad_norm),
+                        ("pressure (volume multiplier)", pressure)):
+        if value is not None and not np.isfinite(value):
+            return f"non-finite {name} {value!r}"
+    if not thorough:
+        return None
+    flipped = inverted_faces(X, ctx.mesh.topology) if faces else ()
+    if len(flipped):
+        return (f"{len(flipped)} inverted face(s), e.g. face {int(flipped[0])}, whose normal "
+                f"points against those of its three neighbours (a triangle flipped over)")
+    scaled = ctx.energy.value(ctx.mesh.X * (V / ctx.V0) ** (1.0 / 3.0))
+    bound = ENERGY_BOUND_FACTOR * (abs(scaled) + 8.0 * np.pi * ctx.params.kappa)
+    if not E <= bound:
+        return (f"energy E = {E:.6g} above the bound {bound:.6g} ({ENERGY_BOUND_FACTOR:g} "
+                f"times the energy {scaled:.6g} of the reference sphere scaled to the same "
+                f"volume, plus 8 pi kappa)")
+    return None
+
+
+def _check_domain(ctx: Context, k: int, result, *, thorough: bool = False,
+                  faces: bool = True) -> None:
+    """Raise :class:`LeftDomain` if the end ``result`` of a minimization of step ``k`` is
+    outside the physical domain (:func:`domain_exit`)."""
+    why = domain_exit(ctx, result.x, result.fun, grad_norm=result.grad_norm,
+                      pressure=result.pressure, thorough=thorough, faces=faces)
+    if why is not None:
+        raise LeftDomain(k, why)
+
+
 DIRECT_RETURN_SAMPLES = 10
 """Points of the straight path at which :func:`downhill_path` asks the energy to fall."""
 
@@ -512,7 +608,11 @@ def folded_locally(checker: ContactChecker, X: np.ndarray,
 @one_blas_thread
 def step(ctx: Context, state: State):
     """One step (a volume, pressure, gamma or c0 increment): jiggle, minimize, c0 cycle,
-    measure. Returns ``(state, record)``; a parameter path's record also has ``gamma``."""
+    measure. Returns ``(state, record)``; a parameter path's record also has ``gamma``.
+    Raises :class:`LeftDomain` when a minimization ends outside the physical domain (its
+    volume, finiteness and multiplier after each one; the energy bound and flipped faces at
+    the step's end too, faces unless the step ends the run at self-contact:
+    :func:`domain_exit`)."""
     p = ctx.protocol
     k = state.step + 1
     if k > len(p.schedule):
@@ -537,6 +637,7 @@ def step(ctx: Context, state: State):
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
                            relaxed_token=ctx.workspace.kept,
                            certify_single=state.certify_single)
+        _check_domain(ctx, k, result)
         iterations += result.nit
         E_before = result.fun
         # a minimization that gave up on a fold or a tangle is jiggled again at once; one that
@@ -548,6 +649,7 @@ def step(ctx: Context, state: State):
             flat = _minimize(ctx, ctx.energy.with_c0(0.0), result.x, V_target, pressure,
                              relaxed=result.x, warm=(result,), certify=False,
                              certify_single=state.certify_single)
+            _check_domain(ctx, k, flat)
             # back at c0 = 2/R: from the minimum before the cycle if the way there is downhill
             # (it is where the shell returns; its factorization, which the linear solver
             # keeps, certifies it at once), else from the flat minimum, starting with that
@@ -559,6 +661,7 @@ def step(ctx: Context, state: State):
                 start = result.x
             result = _minimize(ctx, ctx.energy, start, V_target, pressure, relaxed=flat.x,
                                warm=(result, flat), certify_single=state.certify_single)
+            _check_domain(ctx, k, result)
             iterations += flat.nit + result.nit
             again = attempt < retries and _start_again(ctx, result, V_target, state.X)
         if attempt == retries:
@@ -584,6 +687,10 @@ def step(ctx: Context, state: State):
         log.warning("step %d: minimizer did not converge: %s", k, result.message)
     record = measure(ctx, result.x, target, result, E_before=E_before, iterations=iterations,
                      wall_s=time.perf_counter() - t0, contact=contact)
+    # a step that ends the run at self-contact keeps the protocol's end even with faces flipped
+    # over in the contact (a flipped triangle passes through its neighbours)
+    _check_domain(ctx, k, result, thorough=True,
+                  faces=not (p.stop_at_contact and record["self_intersecting"]))
     record["step"] = k
     record["jiggle_sigma"] = float(sigma)
     record["jiggle_attempts"] = attempt + 1
