@@ -4,16 +4,22 @@ Every sub-command is one module of :mod:`shellbuckle.commands` (``register(subpa
 it and sets its ``func``), found at start-up; the options several commands share are declared
 once in :mod:`shellbuckle.commands._options`. :func:`main` runs the command and keeps the exit
 codes: 0 on success, 2 on bad input (a ``ValueError`` or ``FileNotFoundError``: its message on
-stderr), 130 when interrupted, 1 on any other failure during the work.
+stderr), 130 when interrupted by Ctrl-C (SIGINT) and 143 by SIGTERM (which takes the same path:
+a run is stored as interrupted, resumable), whatever the code was doing (an interrupt inside a
+compiled kernel or a linear solver surfaces as another exception, whose chain holds it), 1 on
+any other failure during the work (a run that left the physical domain among them).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 
 
 def command_modules() -> list:
@@ -42,6 +48,39 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised by the handler :func:`main` installs: it takes the interrupt path of
+    Ctrl-C (the run is stored as interrupted, resumable), with exit code 128 + the signal."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _terminate(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts():
+    """SIGTERM raises :class:`Terminated` inside the block (main thread only: elsewhere the
+    handler cannot be installed and SIGTERM keeps its disposition)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
+    from .run import interrupt_of
+
+    return interrupt_of(exc)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -51,17 +90,31 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_interrupts():
+            return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as exc:
+        interrupt = _interrupt_of(exc)
+        if interrupt is not None:
+            return _interrupted(args.command, interrupt)
         print(f"shellbuckle {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"shellbuckle {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _interrupted(args.command, exc)
     except Exception as exc:  # a failure during the work, not bad input
+        interrupt = _interrupt_of(exc)
+        if interrupt is not None:
+            return _interrupted(args.command, interrupt)
         logging.getLogger("shellbuckle").debug("failure", exc_info=True)
         print(f"shellbuckle {args.command}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
+
+
+def _interrupted(command: str, interrupt: KeyboardInterrupt) -> int:
+    """Report an interrupt; its exit code: 130 for Ctrl-C (SIGINT), 128 + the signal for
+    :class:`Terminated` (143 for SIGTERM)."""
+    how = f" ({interrupt})" if str(interrupt) else ""
+    print(f"shellbuckle {command}: interrupted{how}", file=sys.stderr)
+    return 128 + getattr(interrupt, "signum", signal.SIGINT)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ schedule (re-inflation, arbitrary paths) while keeping the original stress-free 
 from __future__ import annotations
 
 import logging
+import os
+import signal
+import threading
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -103,11 +106,13 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
         protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)
     out = Path(out) if out is not None else default_out(params, seed)
     rest = None if form_factors is None else {"form_factors": np.asarray(form_factors, float)}
-    store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
-                            X0=mesh.X, faces=mesh.faces, rest=rest,
-                            extra_meta={SOLVER_MODE: solver_mode(threads)})
-    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
-                  threads=threads)
+    def setup():
+        store = RunStore.create(out, params=params.to_dict(), protocol=protocol.to_dict(),
+                                X0=mesh.X, faces=mesh.faces, rest=rest,
+                                extra_meta={SOLVER_MODE: solver_mode(threads)})
+        return store, mesh, params, protocol
+
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
 
 
 def resume(path, *, progress: bool = False, max_steps: int | None = None,
@@ -115,12 +120,13 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
     """Continue a stored run from its last finished step (``threads`` as in :func:`deflate`)."""
     if threads is not None:
         threads = check_threads(threads)
-    store = RunStore.resume(path)
-    params = ShellParameters.from_dict(store.params)
-    protocol = Protocol.from_dict(store.protocol)
-    mesh = Mesh.from_arrays(store.X0, store.faces)
-    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
-                  threads=threads)
+    def setup():
+        store = RunStore.resume(path)
+        params = ShellParameters.from_dict(store.params)
+        protocol = Protocol.from_dict(store.protocol)
+        return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
+
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
 
 
 def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
@@ -145,10 +151,13 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
                "fixed_dV_over_V": None}
     protocol = Protocol.from_dict(fields)
     params = parent.params_at(step)
-    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict(),
-                                extra_meta={SOLVER_MODE: solver_mode(None)})
-    mesh = Mesh.from_arrays(store.X0, store.faces)
-    return _drive(store, mesh, params, protocol, progress=progress)
+    def setup():
+        store = parent.store.branch(out, step, params=params.to_dict(),
+                                    protocol=protocol.to_dict(),
+                                    extra_meta={SOLVER_MODE: solver_mode(None)})
+        return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
+
+    return _drive(setup, progress=progress)
 
 
 def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
@@ -185,11 +194,14 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
             "spacing": ("geometric" if control == "gamma" else "linear")
             if np.ndim(value) == 0 else "given",
             "fixed_dV_over_V": fixed, "parent": str(parent.path.resolve()), "parent_step": step}
-    store = parent.store.branch(out, step, params=params.to_dict(), protocol=protocol.to_dict(),
-                                extra_meta={"path": path, SOLVER_MODE: solver_mode(None)},
-                                record={"gamma": params.gamma})
-    mesh = Mesh.from_arrays(store.X0, store.faces)
-    return _drive(store, mesh, params, protocol, progress=progress, max_steps=max_steps)
+    def setup():
+        store = parent.store.branch(out, step, params=params.to_dict(),
+                                    protocol=protocol.to_dict(),
+                                    extra_meta={"path": path, SOLVER_MODE: solver_mode(None)},
+                                    record={"gamma": params.gamma})
+        return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
+
+    return _drive(setup, progress=progress, max_steps=max_steps)
 
 
 def _parameter_values(control: str, value, start: float, increments) -> np.ndarray:
@@ -282,15 +294,122 @@ def solver_mode(threads: int | None) -> str:
     return "reproducible" if check_mode(None, threads or default_threads()) else "plain"
 
 
-def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
-           max_steps: int | None = None, threads: int | None = None) -> Run:
+def _drive(setup, *, progress: bool, max_steps: int | None = None,
+           threads: int | None = None) -> Run:
+    """Run a protocol into a store from its last step; ``setup()`` opens the store and gives
+    ``(store, mesh, params, protocol)``. The store's status tells how the run ended: finished,
+    paused (``max_steps``), failed (an error, or a step that left the physical domain,
+    :class:`~shellbuckle.protocol.deflate.LeftDomain`, which is not stored) or interrupted
+    (Ctrl-C or SIGTERM, wherever it arrived: see :class:`_Interrupts` and
+    :func:`interrupt_of`)."""
+    interrupts = _Interrupts()
+    try:
+        store, mesh, params, protocol = setup()
+    except BaseException:
+        interrupts.restore()
+        raise
+    try:
+        interrupts.start()
+        _drive_steps(store, mesh, params, protocol, progress=progress, max_steps=max_steps,
+                     threads=threads, checkpoint=interrupts.check)
+    except (Exception, KeyboardInterrupt) as exc:
+        interrupts.restore()
+        interrupt = interrupt_of(exc)
+        if interrupt is None:
+            store.set_status("failed", f"{type(exc).__name__}: {exc}")
+            store.close()
+            raise
+        how = f" ({interrupt})" if str(interrupt) else ""
+        where = ("before step 0 was stored" if store.last_step is None
+                 else f"after step {store.last_step}")
+        store.set_status("interrupted", f"interrupted{how} {where}; "
+                         f"`shellbuckle resume {store.path}` continues it")
+        store.close()
+        if interrupt is exc:
+            raise
+        raise interrupt from exc
+    interrupts.restore()
+    store.close()
+    return Run(RunStore.open(store.path))
+
+
+class _Interrupts:
+    """SIGINT and SIGTERM during a run (main thread only; elsewhere handlers cannot be
+    installed and this does nothing), so that each ends the run as interrupted.
+
+    From construction to :meth:`start` (while the run folder is written) a signal is only
+    recorded; :meth:`start` hands it to its former handler (Python's raises
+    ``KeyboardInterrupt``, the CLI's SIGTERM handler its subclass; ``SIG_DFL`` takes the
+    default action), inside the run's ``try``. After :meth:`start` a signal is recorded and
+    handed on at once; :meth:`check`, called between steps, hands it on again if it has not
+    ended the run: an exception raised inside a callback from compiled code is printed and
+    dropped ("Exception ignored on calling ctypes callback function", Numba loading a kernel
+    from its cache), and the step then finishes normally. :meth:`restore` puts the former
+    handlers back. A signal that is ignored (``SIG_IGN``) stays ignored."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.pending: list[int] = []
+        self.previous: dict = {}
+        self.holding = True
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for signum in self.SIGNALS:
+            handler = signal.getsignal(signum)
+            if handler is not None and handler != signal.SIG_IGN:
+                self.previous[signum] = signal.signal(signum, self._record)
+
+    def _record(self, signum, frame) -> None:
+        self.pending.append(signum)
+        if not self.holding:
+            self._hand_on(signum)
+
+    def start(self) -> None:
+        self.holding = False
+        self.check()
+
+    def check(self) -> None:
+        if self.pending:
+            self._hand_on(self.pending[0])
+
+    def restore(self) -> None:
+        previous, self.previous = self.previous, {}
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+    def _hand_on(self, signum: int) -> None:
+        handler = self.previous.get(signum)
+        if callable(handler):
+            handler(signum, None)
+        elif handler == signal.SIG_DFL:
+            self.restore()
+            os.kill(os.getpid(), signum)
+
+
+def interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt (a ``KeyboardInterrupt``, or a subclass such as the CLI's SIGTERM) behind
+    ``exc``, or None: ``exc`` itself, or one in its chain of causes and contexts. An interrupt
+    that arrives inside a compiled call (a Numba kernel, a linear solver) surfaces as another
+    exception, e.g. ``SystemError: ... returned a result with an exception set``, whose
+    context is the interrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,
+                 max_steps: int | None, threads: int | None, checkpoint) -> None:
+    """The run loop; ``checkpoint()`` is called before each step and before the final status
+    (:meth:`_Interrupts.check`)."""
     mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
     if mode not in ("plain", "reproducible"):
-        message = (f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
-                   f"'reproducible'")
-        store.set_status("failed", message)
-        store.close()
-        raise ValueError(message)
+        raise ValueError(f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
+                         f"'reproducible'")
     if mode == "plain" and threads is not None and threads > 1:
         log.info("run %s was made in PARDISO's plain mode on one thread: it goes on on one "
                  "thread (%d asked) to give the same bits", store.path, threads)
@@ -299,48 +418,41 @@ def _drive(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress:
     ctx, state = protocol_mod.init(mesh, params, protocol,
                                    form_factors=store.rest.get("form_factors"), threads=threads,
                                    reproducible=mode == "reproducible")
-    try:
-        last = store.last_step
-        if last is None:
-            record = protocol_mod.measure(ctx, state.X, 0.0)
-            store.append_step(0, state.X, record)
-        else:
-            record = store.record(last)
-            state = protocol_mod.state_after(last, store.positions(last), record)
-            if record.get("self_intersecting") and protocol.stop_at_contact:
-                state = State(step=last, X=state.X, stopped="self-intersection")
-            elif last >= len(protocol.schedule):
-                state = State(step=last, X=state.X, stopped="end of the schedule")
-        bar = _progress(progress, len(protocol.schedule), state.step)
-        done = 0
-        while state.stopped is None and (max_steps is None or done < max_steps):
-            state, record = protocol_mod.step(ctx, state)
-            store.append_step(state.step, state.X, record)
-            done += 1
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} E/k={record['E_over_kappa']:.4g} "
-                                    f"p={record['pressure']:.4g}")
-            log.info("step %d: dV/V = %.4f, E = %.6g, p = %.6g, %d it, %.2f s", state.step,
-                     record["dV_over_V"], record["E_total"], record["pressure"],
-                     record["iterations"], record["wall_s"])
+    last = store.last_step
+    if last is None:
+        why = protocol_mod.domain_exit(ctx, state.X)
+        if why is not None:
+            raise protocol_mod.LeftDomain(0, why)
+        record = protocol_mod.measure(ctx, state.X, 0.0)
+        store.append_step(0, state.X, record)
+    else:
+        record = store.record(last)
+        state = protocol_mod.state_after(last, store.positions(last), record)
+        if record.get("self_intersecting") and protocol.stop_at_contact:
+            state = State(step=last, X=state.X, stopped="self-intersection")
+        elif last >= len(protocol.schedule):
+            state = State(step=last, X=state.X, stopped="end of the schedule")
+    bar = _progress(progress, len(protocol.schedule), state.step)
+    done = 0
+    while state.stopped is None and (max_steps is None or done < max_steps):
+        checkpoint()
+        state, record = protocol_mod.step(ctx, state)
+        store.append_step(state.step, state.X, record)
+        done += 1
         if bar is not None:
-            bar.close()
-        if state.stopped is not None:
-            store.set_status("finished", state.stopped)
-        else:
-            store.set_status("paused", f"stopped after {done} new steps; resume to continue")
-    except KeyboardInterrupt:
-        store.set_status("interrupted", f"interrupted after step {store.last_step}; "
-                         f"`shellbuckle resume {store.path}` continues it")
-        store.close()
-        raise
-    except Exception as exc:
-        store.set_status("failed", f"{type(exc).__name__}: {exc}")
-        store.close()
-        raise
-    store.close()
-    return Run(RunStore.open(store.path))
+            bar.update(1)
+            bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} E/k={record['E_over_kappa']:.4g} "
+                                f"p={record['pressure']:.4g}")
+        log.info("step %d: dV/V = %.4f, E = %.6g, p = %.6g, %d it, %.2f s", state.step,
+                 record["dV_over_V"], record["E_total"], record["pressure"],
+                 record["iterations"], record["wall_s"])
+    if bar is not None:
+        bar.close()
+    checkpoint()
+    if state.stopped is not None:
+        store.set_status("finished", state.stopped)
+    else:
+        store.set_status("paused", f"stopped after {done} new steps; resume to continue")
 
 
 def _progress(enabled: bool, total: int, initial: int):
