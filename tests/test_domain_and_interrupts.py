@@ -7,7 +7,6 @@ a resumed run repeats bit for bit (all columns but ``wall_s``).
 """
 
 import json
-import os
 import shutil
 import signal
 import subprocess
