@@ -212,7 +212,7 @@ def _assert_interrupted(out, code, err, expected_code):
 
 
 SIGINT_TRIALS = 20
-FAST_TRIALS = 4
+FAST_TRIALS = 3
 """SIGINT trials in the default test run (each ~4 s, mostly Python's start); the rest are
 marked slow."""
 
