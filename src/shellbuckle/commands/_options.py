@@ -14,11 +14,14 @@ import dataclasses
 import inspect
 from functools import lru_cache
 
+from ._checks import RANGES, Number, allowed, check_value, typed
+
 #: 2D Poisson ratio of every command's default shell (an incompressible material).
 DEFAULT_NU = 1.0 / 3.0
 
-NU_HELP = ("2D Poisson ratio nu in (-1, 1); a 3D material gives nu <= 1/3 (larger values are "
-           "warned about) and d/R needs nu < 1/2 (default 1/3, incompressible)")
+NU_HELP = ("2D Poisson ratio nu (default 1/3, incompressible); the same rule in every command: "
+           "-1 < nu < 1/2, where the thickness d/R is defined; a 3D material gives nu <= 1/3 "
+           "(larger values are warned about in one line)")
 
 
 def default_gamma() -> float:
@@ -29,8 +32,9 @@ def default_gamma() -> float:
 
 
 def gamma_help() -> str:
-    return (f"Foppl-von Karman number gamma = A R^2/kappa, > 0 (default {default_gamma():g}, "
-            "the main job: a capsule that turns polygonal, then wrinkles)")
+    return (f"Foppl-von Karman number gamma = A R^2/kappa (default {default_gamma():g}, "
+            "the main job: a capsule that turns polygonal, then wrinkles); the mesh must "
+            "resolve the elastic length R gamma^-1/4: at least 1.47 sqrt(gamma) vertices")
 
 
 def _listed(text: str, listed: bool) -> str:
@@ -47,18 +51,25 @@ def add_shell_options(parser, *, material: bool = True, listed: bool = False,
     if material:
         parser = parser.add_argument_group(
             "shell parameters (either gamma and nu, or a 3D material)")
-    kind = str if listed else float
-    parser.add_argument("--gamma", type=kind, metavar="G,.." if listed else None,
+    def kind(name):
+        return str if listed else Number(name)
+
+    def text(help_text, name):
+        return _listed(f"{help_text}; {allowed(name)}", listed).replace("%", "%%")
+
+    parser.add_argument("--gamma", type=kind("gamma"), metavar="G,.." if listed else None,
                         default=default_gamma() if defaults else None,
-                        help=_listed(gamma_help(), listed))
-    parser.add_argument("--nu", type=kind, metavar="NU,.." if listed else None,
-                        default=DEFAULT_NU if defaults else None, help=_listed(NU_HELP, listed))
+                        help=text(gamma_help(), "gamma"))
+    parser.add_argument("--nu", type=kind("nu"), metavar="NU,.." if listed else None,
+                        default=DEFAULT_NU if defaults else None, help=text(NU_HELP, "nu"))
     if material:
-        parser.add_argument("--E", type=float, help="3D Young modulus of the material")
-        parser.add_argument("--sigma", type=float,
-                            help="3D Poisson ratio of the material, in (-1, 0.5]")
-        parser.add_argument("--d", type=float, help="shell thickness")
-        parser.add_argument("--R", type=float, help="shell radius (with --E --sigma --d)")
+        parser.add_argument("--E", type=Number("E"),
+                            help=text("3D Young modulus of the material", "E"))
+        parser.add_argument("--sigma", type=Number("sigma"),
+                            help=text("3D Poisson ratio of the material", "sigma"))
+        parser.add_argument("--d", type=Number("d"), help=text("shell thickness", "d"))
+        parser.add_argument("--R", type=Number("R"),
+                            help=text("shell radius (with --E --sigma --d)", "R"))
     add_convention_option(parser, default=convention_default, listed=listed)
 
 
@@ -87,8 +98,15 @@ def params_from_args(args, fallback=None):
         if args.gamma is not None or args.nu is not None:
             raise ValueError("give either --gamma/--nu or the material --E --sigma --d --R, "
                              "not both")
-        return ShellParameters.from_material(args.E, args.sigma, args.d, args.R,
-                                             energy_convention=convention)
+        d, R = typed(args, "--d", args.d), typed(args, "--R", args.R)
+        if not args.d < args.R:
+            raise ValueError(f"--d {d}: allowed: a thickness below --R {R}")
+        params = ShellParameters.from_material(args.E, args.sigma, args.d, args.R,
+                                               energy_convention=convention)
+        if RANGES["gamma"].problem(params.gamma):
+            raise ValueError(f"--d {d} with --R {R}: gives gamma = "
+                             f"{params.gamma:.6g}; {allowed('gamma')}")
+        return params
     if fallback is not None and args.gamma is None and args.nu is None:
         return fallback
     gamma = args.gamma if args.gamma is not None else (
@@ -113,6 +131,7 @@ class _Option:
     value: object = None
     choices: tuple = ()
     metavar: str = ""
+    range: str = ""
 
 
 @lru_cache(maxsize=1)
@@ -137,26 +156,27 @@ def _options() -> dict:
 
     d = protocol_defaults()
     options = [
-        _Option("--seed", "seed", "random seed of the mesh and the jiggle, >= 0",
-                f"default {d['seed']}", type=int, metavar="S,.."),
-        _Option("--dv", "dv", "volume step / V0, in (0, 0.5]", f"default {d['dv']:g}",
-                metavar="DV,.."),
+        _Option("--seed", "seed", "random seed of the mesh and the jiggle",
+                f"default {d['seed']}", type=int, metavar="S,..", range="seed"),
+        _Option("--dv", "dv", "volume step / V0", f"default {d['dv']:g}",
+                metavar="DV,..", range="dv"),
         _Option("--until", "until", f"last target dV/V, below {MAX_DV_OVER_V:g}",
                 f"default {d['until']:g}; the run stops earlier at self-contact",
-                metavar="U,.."),
+                metavar="U,..", range="until"),
         _Option("--schedule", "schedule", "comma-separated target dV/V values instead of "
-                "--dv/--until", type=str),
+                "--dv/--until; each " + RANGES["schedule"].explained(), type=str),
         _Option("--pressures", "pressures", "pressure control: comma-separated external "
-                "overpressures (units kappa/R^3), one per step, instead of a volume schedule",
-                type=str),
+                "overpressures (units kappa/R^3), one per step, instead of a volume schedule; each "
+                "in [-gamma, p_c): below the classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 "
+                "(above it a pressure-controlled shell turns inside out)", type=str),
         _Option("--no-c0-cycle", "c0_cycle", "skip the zero-spontaneous-curvature cycle, "
                 "which gives the paper's 'potato' shapes", value=False),
         _Option("--temperature", "temperature", "jiggle temperature on Surface Evolver's "
                 "scale, in [0, 1]: displacements of std 0.28 T times the size of the initial "
                 "surface", f"default {d['temperature']:g}, as Surface Evolver: 0.028 R",
-                metavar="T,.."),
+                metavar="T,..", range="temperature"),
         _Option("--jiggle", "jiggle", "jiggle amplitude as a fraction of the mean edge "
-                "length, in [0, 0.5], instead of --temperature", metavar="J,.."),
+                "length, instead of --temperature", metavar="J,..", range="jiggle"),
         _Option("--bending", "bending", "bending discretization, one of "
                 f"{', '.join(BENDING_KINDS)}", f"default {d['bending']}; a Surface Evolver "
                 "--mesh file that bends with star_perp_sq_mean_curvature brings evolver",
@@ -167,8 +187,9 @@ def _options() -> dict:
         _Option("--max-iter", "max_iter", "Newton steps (factorizations) of each "
                 "minimization at most, or iterations with --method cg/gd",
                 f"default {d['max_iter']}; a small budget with --method cg quenches as a fixed "
-                "Surface Evolver script", type=int),
-        _Option("--c0", "c0", "spontaneous curvature c = c1 + c2", "default 2/R"),
+                "Surface Evolver script", type=int, range="max_iter"),
+        _Option("--c0", "c0", "spontaneous curvature c = c1 + c2; |c0| at most 2/(mean edge): "
+                "the preferred radius is at least an edge", "default 2/R", range="c0"),
         _Option("--no-prerelax", "prerelax", "start each Newton minimization at once, "
                 "without the relaxation preconditioned by the step's starting state: slower, "
                 "for comparisons", value=False),
@@ -180,25 +201,30 @@ def _options() -> dict:
 
 
 def add_protocol_options(parser, names, *, listed: bool = False, inherited: bool = False,
-                         flags: dict | None = None) -> None:
+                         flags: dict | None = None, ranges: dict | None = None) -> None:
     """Add the protocol options ``names`` (Protocol fields, plus ``dv``, ``until``,
     ``schedule``, ``pressures``) to ``parser``; each defaults to None. ``listed``: as
     comma-separated lists (a sweep's axes). ``inherited``: a continued run keeps the stored
     run's value of an option left out, which the help says. ``flags`` renames options
-    (a sweep's ``{"seed": "--seeds"}``)."""
+    (a sweep's ``{"seed": "--seeds"}``). ``ranges`` replaces the range of an option
+    (:data:`._checks.RANGES`; ``{"dv": "dv_signed"}`` where a negative step re-inflates)."""
     options = _options()
     for name in names:
         o = options[name]
         flag = (flags or {}).get(name, o.flag)
         default = "default: the run's" if inherited else o.default
         help_text = f"{o.help} ({default})" if default else o.help
+        span = (ranges or {}).get(name, o.range)
+        if span:
+            help_text = f"{help_text}; {allowed(span)}"
+        help_text = help_text.replace("%", "%%")
         if o.value is not None:
             parser.add_argument(flag, action="store_true", help=help_text)
         elif listed and o.metavar:
             parser.add_argument(flag, metavar=o.metavar, help=_listed(help_text, True))
         else:
-            parser.add_argument(flag, type=o.type, choices=list(o.choices) or None,
-                                help=help_text)
+            parser.add_argument(flag, type=Number(span) if span else o.type,
+                                choices=list(o.choices) or None, help=help_text)
 
 
 def protocol_values(args, names) -> dict:
@@ -217,10 +243,11 @@ def protocol_values(args, names) -> dict:
     return out
 
 
-def values(option: str, text: str, kind=float) -> list:
+def values(option: str, text: str, kind=float, span: str = "") -> list:
     """The comma-separated values of ``option`` as ``kind`` (``int``, ``float`` or ``str``;
     integers also as inclusive ranges ``a-b``); empty items are skipped. ValueError naming the
-    item that is not a ``kind``."""
+    item that is not a ``kind``, or (with ``span``, a name of :data:`._checks.RANGES`) not in
+    its range."""
     out = []
     for item in (part.strip() for part in text.split(",")):
         if not item:
@@ -230,23 +257,34 @@ def values(option: str, text: str, kind=float) -> list:
                 low, high = (int(x) for x in item.split("-", 1))
                 if high < low:
                     raise ValueError
-                out.extend(range(low, high + 1))
+                if high - low >= 20_000:
+                    raise ValueError(f"{option}: {item!r} holds {high - low + 1} values; "
+                                     "allowed: at most 20000")
+                bounds = [low, high]
             else:
-                out.append(kind(item))
-        except ValueError:
+                bounds = [kind(item)]
+        except ValueError as exc:
+            if "allowed" in str(exc):
+                raise
             what = {int: "an integer (or a range a-b)", float: "a number"}.get(kind, "a name")
-            raise ValueError(f"{option}: {item!r} is not {what}") from None
+            extra = f"; {allowed(span)}" if span else ""
+            raise ValueError(f"{option}: {item!r} is not {what}{extra}") from None
+        if span:
+            for value in bounds:
+                check_value(option, span, value, item)
+        out.extend(range(bounds[0], bounds[1] + 1) if len(bounds) == 2 else bounds)
     return out
 
 
 # --------------------------------------------------------------------------- runs and steps
 
 def add_threads_option(parser) -> None:
-    parser.add_argument("--threads", type=int,
+    parser.add_argument("--threads", type=Number("threads"),
                         help="threads of the sparse factorization (default: the cores this "
                              "process may use, or MKL_NUM_THREADS); one thread runs PARDISO's "
                              "faster plain mode, several its reproducible mode (the same bits "
-                             "on any number); a run keeps its mode when resumed")
+                             "on any number); a run keeps its mode when resumed; "
+                             + allowed("threads"))
 
 
 def add_run_output_options(parser) -> None:

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import os
+
+from ._checks import add_command, run_folder
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "analyze", help="classify every step of a run, store the analysis columns, print events",
+    parser = add_command(
+        sub, "analyze", help="classify every step of a run, store the analysis columns, print events",
         description="Classify the conformation of every finished step of the run folder DIR "
                     "and store the analysis columns (shape, n_dimples, corners, W, dent_depth, "
                     "dent_sagitta, rim_radius, rim_mode, rim_amplitude, concave_arcs, "
@@ -22,9 +26,10 @@ def register(sub) -> None:
 
 def _cmd(args) -> int:
     from ..analysis import analyze_run, events
-    from ..run import Run
-
-    found = Run.open(args.dir)
+    found = run_folder("DIR", args.dir)
+    if not os.access(found.path, os.W_OK):
+        raise ValueError(f"DIR {args.dir}: the run folder is not writable (the analysis is "
+                         "stored in it)")
     if not found.steps:
         raise ValueError(f"run folder {args.dir!r} has no finished step yet")
     table = analyze_run(found, progress=not args.quiet)

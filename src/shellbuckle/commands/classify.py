@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, add_number, input_file, run_folder
 from ._options import stored_step
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "classify", help="classify one conformation: sphere, dimples, capsule, polygonal, wrinkled",
+    parser = add_command(
+        sub, "classify", help="classify one conformation: sphere, dimples, capsule, polygonal, wrinkled",
         description="Classify the conformation in FILE, a closed triangulated surface in any "
                     "supported mesh format (.fe/.dmp Surface Evolver, or a meshio format: "
                     ".vtk .vtu .xdmf .msh .ply .obj .off .stl .mesh .inp), or a step of a run "
@@ -16,8 +17,8 @@ def register(sub) -> None:
                     "dimples, corners and wrinkles W, the dent's depth, sagitta and axis, the "
                     "rim radius and its strongest Fourier modes. Lengths in the file's units.")
     parser.add_argument("file", metavar="FILE", help="mesh file, or run folder with --step")
-    parser.add_argument("--step", type=int, metavar="K",
-                        help="step of a run folder (negative counts from the last; default -1)")
+    add_number(parser, "--step", "step", "step of a run folder (negative counts from the last; "
+               "default -1)", metavar="K")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON object (with all the descriptors)")
     parser.set_defaults(func=_cmd)
@@ -42,15 +43,12 @@ def _conformation(name: str, step):
 
     path = Path(name)
     if path.is_dir():
-        from ..run import Run
-
-        run = Run.open(path)
+        run = run_folder("FILE", path)
         k = stored_step(run, -1 if step is None else step)
         return run.positions(k), run.faces, f"{path} step {k}"
     if step is not None:
         raise ValueError("--step applies to a run folder, not to a mesh file")
-    if not path.exists():
-        raise ValueError(f"mesh file {str(path)!r} does not exist")
+    input_file("FILE", path)
     from ..mesh.io import read_mesh
 
     mesh = read_mesh(path)

@@ -21,8 +21,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ._checks import (RANGES, add_command, add_number, check_c0, check_mesh, check_steps,
+                      check_value, floats, output_folder, run_folder, typed)
 from ._options import (add_protocol_options, add_run_output_options, protocol_defaults,
-                       protocol_values, stored_step, values)
+                       protocol_values, stored_step)
 
 #: Protocol options a continued run takes from the stored run unless given.
 INHERITED = ("seed", "c0_cycle", "temperature", "jiggle", "method", "max_iter", "prerelax",
@@ -30,8 +32,8 @@ INHERITED = ("seed", "c0_cycle", "temperature", "jiggle", "method", "max_iter", 
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "continue", help="continue from a stored step: in volume, or along a path in gamma "
+    parser = add_command(
+        sub, "continue", help="continue from a stored step: in volume, or along a path in gamma "
                          "or c0 at fixed volume",
         description="Start a new run in --out from step K of the run in DIR, with its "
                     "reference sphere, parameters and protocol (options given replace them). "
@@ -45,11 +47,10 @@ def register(sub) -> None:
                     "shellbuckle continue runs/g2333 --step 34 --gamma 15163 --increments 8 "
                     "--out runs/g2333_to_15163 --compare runs/g15163")
     parser.add_argument("dir", metavar="DIR", help="run folder to start from")
-    parser.add_argument("--step", type=int, default=-1,
-                        help="the step of DIR to start from (default: the last; negative "
-                             "values count from the last)")
+    add_number(parser, "--step", "step", "the step of DIR to start from (default: the last; "
+               "negative values count from the last)", default=-1)
     volume = parser.add_argument_group("a volume path (a negative --dv re-inflates)")
-    add_protocol_options(volume, ("dv", "until", "schedule"))
+    add_protocol_options(volume, ("dv", "until", "schedule"), ranges={"dv": "dv_signed"})
     what = parser.add_argument_group("or a path in gamma or c0 at the volume of step K")
     exclusive = what.add_mutually_exclusive_group()
     exclusive.add_argument("--gamma", metavar="[G0:]G1 | G1,G2,..",
@@ -58,12 +59,10 @@ def register(sub) -> None:
     exclusive.add_argument("--c0", metavar="[C0:]C1 | C1,C2,..",
                            help="spontaneous curvature to reach (c = c1 + c2; the stress-free "
                                 "sphere has 2/R), or the list of values")
-    what.add_argument("--increments", type=int,
-                      help="number of increments to the target (required with a target, "
-                           "0 stores the start only)")
-    what.add_argument("--then-deflate-to", type=float, metavar="DV",
-                      help="continue the end of the path in volume up to dV/V = DV (steps of "
-                           "--dv; a smaller DV re-inflates)")
+    add_number(what, "--increments", "increments", "number of increments to the target "
+               "(required with a target, 0 stores the start only)")
+    add_number(what, "--then-deflate-to", "until", "continue the end of the path in volume up "
+               "to dV/V = DV (steps of --dv; a smaller DV re-inflates)", metavar="DV")
     what.add_argument("--then-out", metavar="DIR2",
                       help="run folder of --then-deflate-to (default: OUT_deflated)")
     add_protocol_options(parser.add_argument_group("protocol (default: the run's)"), INHERITED,
@@ -71,8 +70,8 @@ def register(sub) -> None:
     then = parser.add_argument_group("afterwards")
     then.add_argument("--compare", metavar="RUN",
                       help="compare the last conformation with a step of the run folder RUN")
-    then.add_argument("--compare-step", type=int,
-                      help="the step of --compare (default: the step whose dV/V is closest)")
+    add_number(then, "--compare-step", "step",
+               "the step of --compare (default: the step whose dV/V is closest)")
     then.add_argument("--json", action="store_true", help="print the comparison as JSON")
     parser.add_argument("--out", required=True, metavar="OUT", help="run folder of the path")
     add_run_output_options(parser)
@@ -85,15 +84,23 @@ def continue_run(args) -> int:
     from ..run import Run
     from ._output import report_run
 
-    parent = Run.open(args.dir)
+    parent = run_folder(getattr(args, "dir_option", "DIR"), args.dir)
     step = stored_step(parent, args.step)
     options = protocol_values(args, INHERITED)
+    other = None
+    if args.compare is not None:
+        other = run_folder("--compare", args.compare)
+        if args.compare_step is not None:
+            stored_step(other, args.compare_step, "--compare-step")
+    elif args.compare_step is not None:
+        raise ValueError(f"--compare-step {args.compare_step}: goes with --compare RUN")
+    output_folder("--out", args.out, run=True)
     if args.gamma is None and args.c0 is None:
         last = _volume_path(parent, step, args, options)
         report_run(last, plot=not args.no_plot)
     else:
         last = _parameter_path(parent, step, args, options)
-    if args.compare is not None:
+    if other is not None:
         _compare(last, Run.open(args.compare), args.compare_step, args.json)
     return 0
 
@@ -105,11 +112,21 @@ def _volume_path(parent, step: int, args, options: dict):
         if getattr(args, flag) is not None:
             raise ValueError(f"--{flag.replace('_', '-')} goes with a path in --gamma or --c0; "
                              "a volume path ends at --until")
-    schedule = values("--schedule", args.schedule) or None if args.schedule else None
+    schedule = floats("--schedule", args.schedule, "schedule") if args.schedule else None
     if schedule is not None:
+        check_steps("--schedule", args.schedule, len(schedule))
         return continue_from(parent, step, args.out, schedule=schedule,
                              progress=not args.quiet, **options)
     defaults = protocol_defaults()
+    dv = defaults["dv"] if args.dv is None else args.dv
+    until = defaults["until"] if args.until is None else args.until
+    start = float(parent.table["dV_over_V"].iloc[step])
+    if (until - start) * dv <= 0:
+        raise ValueError(f"--until {typed(args, '--until', until)}: the path starts at "
+                         f"dV/V = {start:.6g}; a step --dv {typed(args, '--dv', dv)} "
+                         f"{'deflates' if dv > 0 else 're-inflates'}: allowed: --until "
+                         f"{'above' if dv > 0 else 'below'} {start:.6g}")
+    check_steps("--dv", typed(args, "--dv", dv), abs(until - start) / abs(dv))
     return continue_from(parent, step, args.out,
                          dv=defaults["dv"] if args.dv is None else args.dv,
                          until=defaults["until"] if args.until is None else args.until,
@@ -126,15 +143,42 @@ def _parameter_path(parent, step: int, args, options: dict):
                              "volume with --then-deflate-to")
     if args.dv is not None and args.then_deflate_to is None:
         raise ValueError("--dv with a path in gamma or c0 is the step of --then-deflate-to")
+    params = parent.params_at(step)
+    n_vertices = len(parent.store.X0)
     if args.gamma is not None:
-        kind = {"gamma": _target("--gamma", args.gamma, parent.params_at(step).gamma)}
+        kind = {"gamma": _target("--gamma", args.gamma, params.gamma)}
     else:
         kind = {"c0": _target("--c0", args.c0, parent.c0_at(step))}
     value = next(iter(kind.values()))
+    for target in value if isinstance(value, list) else [value]:
+        if args.gamma is not None:
+            check_value("--gamma", "gamma", target, args.gamma)
+            check_mesh("--gamma", args.gamma, target, n_vertices,
+                       gamma_effective=target / params.bending_factor,
+                       mesh=f"the run in {args.dir}")
+        else:
+            check_value("--c0", "c0", target, args.c0)
+            check_c0("--c0", args.c0, target, n_vertices, params.R)
+    if isinstance(value, list):
+        check_steps("--" + next(iter(kind)), args.gamma or args.c0, len(value))
     if isinstance(value, float) and args.increments is None:
         raise ValueError("a target value needs --increments N (e.g. --increments 8)")
     if isinstance(value, list) and args.increments is not None:
         raise ValueError("--increments goes with a target value, not with a list of values")
+    then_out = None
+    if args.then_deflate_to is not None:
+        then_out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
+        output_folder("--then-out", then_out, run=True)
+        start = float(parent.table["dV_over_V"].iloc[step])
+        if args.then_deflate_to == start:
+            raise ValueError(f"--then-deflate-to {typed(args, '--then-deflate-to')}: the path "
+                             f"is at dV/V = {start:.6g} already; allowed: another dV/V in "
+                             f"{RANGES['until']}")
+        dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
+        check_steps("--then-deflate-to", typed(args, "--then-deflate-to"),
+                    abs(args.then_deflate_to - start) / dv)
+    elif args.then_out is not None:
+        raise ValueError(f"--then-out {args.then_out}: goes with --then-deflate-to DV")
     run = continue_in_parameter(parent, step, args.out, increments=args.increments,
                                 progress=not args.quiet, **kind, **options)
     report_run(run)
@@ -142,8 +186,7 @@ def _parameter_path(parent, step: int, args, options: dict):
         return run
     start = float(run.table["dV_over_V"].iloc[-1])
     dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
-    out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
-    last = continue_from(run, -1, out, dv=dv if args.then_deflate_to > start else -dv,
+    last = continue_from(run, -1, then_out, dv=dv if args.then_deflate_to > start else -dv,
                          until=args.then_deflate_to, progress=not args.quiet)
     report_run(last)
     return last
@@ -153,7 +196,7 @@ def _target(option: str, text: str, start: float):
     """A target (float), or a list of values; ``A:B`` checks that ``A`` is the start."""
     try:
         if "," in text:
-            return [float(x) for x in text.split(",") if x.strip()]
+            return [float(x) for x in text.split(",") if x.strip()] or [float("nan")]
         if ":" in text:
             first, last = (float(x) for x in text.split(":", 1))
             if abs(first - start) > 1e-6 * max(abs(start), 1.0):

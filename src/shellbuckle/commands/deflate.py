@@ -6,9 +6,11 @@
 
 from __future__ import annotations
 
+from ._checks import (RANGES, add_command, add_number, check_c0, check_mesh, check_pressures,
+                      check_steps, floats, input_file, output_folder, typed)
 from ._options import (add_protocol_options, add_run_output_options, add_shell_options,
                        add_threads_option, default_gamma, params_from_args, protocol_defaults,
-                       protocol_values, values)
+                       protocol_values)
 
 #: The protocol options of a deflation (Protocol fields, and dv, until, schedule, pressures).
 PROTOCOL = ("seed", "dv", "until", "schedule", "pressures", "c0_cycle", "temperature", "jiggle",
@@ -21,8 +23,8 @@ DEFAULT_VERTICES = 3594
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "deflate", help="deflate a shell with the paper's protocol (the main job)",
+    parser = add_command(
+        sub, "deflate", help="deflate a shell with the paper's protocol (the main job)",
         description="Stepwise deflation at fixed enclosed volume (Quilliet et al. 2008, §4.1): "
                     "at each volume step jiggle, minimize, and run the zero-spontaneous-"
                     "curvature cycle; stop at self-intersection. Every finished step is stored "
@@ -33,13 +35,14 @@ def register(sub) -> None:
     add_shell_options(parser)
     mesh = parser.add_argument_group(f"mesh (default: randomized sphere, {DEFAULT_VERTICES} "
                                      "vertices)")
-    mesh.add_argument("--vertices", type=int, help="vertices of the randomized sphere mesh")
-    mesh.add_argument("--icosphere", type=int, metavar="N",
-                      help="icosahedral sphere with edges divided in N (10 N^2 + 2 vertices)")
+    add_number(mesh, "--vertices", "vertices", "vertices of the randomized sphere mesh")
+    add_number(mesh, "--icosphere", "icosphere", "icosahedral sphere with edges divided in N "
+               "(10 N^2 + 2 vertices)", metavar="N")
     mesh.add_argument("--mesh", metavar="FILE",
                       help="start from a mesh file (.fe/.dmp bring their own moduli, h_zero, "
                            "poisson_ratio and form_factors; or any meshio format)")
-    add_protocol_options(parser.add_argument_group("protocol"), PROTOCOL)
+    add_protocol_options(parser.add_argument_group("protocol"), PROTOCOL,
+                         ranges={"dv": "dv_signed"})
     branch = parser.add_argument_group(
         "continue from a stored step (another spelling of `shellbuckle continue DIR --step K` "
         "along a volume path)")
@@ -47,8 +50,8 @@ def register(sub) -> None:
                         help="start from a step of the run in DIR (its reference sphere, "
                              "parameters and protocol options are kept unless given; give "
                              "--dv/--until or --schedule, e.g. --dv -0.019 to re-inflate)")
-    branch.add_argument("--step", type=int, default=-1,
-                        help="the step of --from to start from (default: the last)")
+    add_number(branch, "--step", "step", "the step of --from to start from (default: the last)",
+               default=-1)
     parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
     add_threads_option(parser)
     add_run_output_options(parser)
@@ -56,10 +59,6 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    from ..solve.linear import check_threads
-
-    if args.threads is not None:
-        check_threads(args.threads)
     if args.from_run is not None:
         from .continue_ import continue_run
 
@@ -67,7 +66,10 @@ def _cmd(args) -> int:
     from ..run import deflate
 
     options = _protocol(args)
-    mesh, params, from_file = _shell(args, options.get("seed", protocol_defaults()["seed"]))
+    if args.out is not None:
+        output_folder("--out", args.out, run=True)
+    mesh, params, from_file = _shell(args, options.get("seed", protocol_defaults()["seed"]),
+                                     options)
     options.setdefault("bending", from_file.get("bending"))
     options.setdefault("c0", from_file.get("c0"))
     options = {k: v for k, v in options.items() if v is not None}
@@ -88,9 +90,21 @@ def _protocol(args) -> dict:
     options = protocol_values(args, PROTOCOL)
     for name in ("schedule", "pressures"):
         if name in options:
-            options[name] = values(f"--{name}", options[name]) or None
+            options[name] = floats(f"--{name}", options[name], name)
+            check_steps(f"--{name}", options[name] and args.__dict__[name],
+                        len(options[name]))
     if options.get("schedule") is not None and options.get("pressures") is not None:
         raise ValueError("give either --schedule or --pressures, not both")
+    defaults = protocol_defaults()
+    dv, until = options.get("dv", defaults["dv"]), options.get("until", defaults["until"])
+    if dv <= 0:
+        raise ValueError(f"--dv {typed(args, '--dv', dv)}: a new deflation needs a step > 0; "
+                         f"{RANGES['dv'].explained()} (a negative step re-inflates a stored run: "
+                         "--from DIR)")
+    if until < dv:
+        raise ValueError(f"--until {typed(args, '--until', until)}: allowed: at least the step "
+                         f"--dv {typed(args, '--dv', dv)} and below 0.99")
+    check_steps("--dv", typed(args, "--dv", dv), until / dv)
     fields = {k: v for k, v in options.items() if k not in ("dv", "until", "schedule",
                                                            "pressures")}
     if options.get("pressures") is not None:
@@ -102,23 +116,55 @@ def _protocol(args) -> dict:
     return options
 
 
-def _shell(args, seed: int):
-    """The starting mesh, the shell parameters and what a mesh file says about the shell."""
+def _shell(args, seed: int, options: dict):
+    """The starting mesh, the shell parameters and what a mesh file says about the shell,
+    checked (the mesh resolves the elastic length, c0 and the pressures) before any folder
+    is made; the randomized or icosahedral mesh is built after the checks."""
     from ..mesh import icosphere
     from ..mesh.random_sphere import random_sphere
     from ..run import params_for_mesh, shell_from_file
 
     if args.mesh is not None:
+        input_file("--mesh", args.mesh)
         mesh, from_file = shell_from_file(args.mesh)
         if args.E is not None:
-            return mesh, params_from_args(args), from_file
-        return mesh, params_for_mesh(mesh, from_file, args.gamma, args.nu,
-                                     energy_convention=args.energy_convention), from_file
+            params = params_from_args(args)
+        else:
+            params = params_for_mesh(mesh, from_file, args.gamma, args.nu,
+                                     energy_convention=args.energy_convention)
+        n = len(mesh.X)
+        if n < RANGES["vertices"].low:
+            raise ValueError(f"--mesh {args.mesh}: {n} vertices; "
+                             f"allowed: {RANGES['vertices'].explained()}")
+        _check_shell(args, params, n, f"--mesh {args.mesh}", options)
+        return mesh, params, from_file
     params = params_from_args(args)
     if args.icosphere is not None:
+        n, what = 10 * args.icosphere ** 2 + 2, f"--icosphere {typed(args, '--icosphere')}"
+    else:
+        vertices = DEFAULT_VERTICES if args.vertices is None else args.vertices
+        n, what = vertices, f"--vertices {typed(args, '--vertices', vertices)}"
+    _check_shell(args, params, n, what, options)
+    if args.icosphere is not None:
         return icosphere(args.icosphere, R=params.R), params, {}
-    vertices = DEFAULT_VERTICES if args.vertices is None else args.vertices
-    return random_sphere(vertices, seed=seed, R=params.R), params, {}
+    return random_sphere(n, seed=seed, R=params.R), params, {}
+
+
+def _check_shell(args, params, n: int, mesh: str, options: dict) -> None:
+    """The mesh of ``n`` vertices resolves gamma; c0 and the pressures suit the shell."""
+    if args.gamma is not None:
+        option, text = "--gamma", typed(args, "--gamma", args.gamma)
+    elif args.d is not None:
+        option, text = "--d", typed(args, "--d", args.d)
+    else:
+        option, text = mesh.split(" ", 1) if " " in mesh else (mesh, "")
+    check_mesh(option, text, params.gamma, n, gamma_effective=params.gamma_effective,
+               mesh=mesh if option != mesh.split(" ", 1)[0] else "it")
+    if options.get("c0") is not None:
+        check_c0("--c0", typed(args, "--c0", options["c0"]), options["c0"], n, params.R)
+    if options.get("pressures") is not None:
+        texts = [t.strip() for t in args.pressures.split(",") if t.strip()]
+        check_pressures("--pressures", texts, options["pressures"], params)
 
 
 def _as_continue(args):
@@ -134,6 +180,6 @@ def _as_continue(args):
         raise ValueError("--from needs --out: the new run gets its own folder")
     given = {name: getattr(args, name) for name in vars(args)}
     return argparse.Namespace(**given | {
-        "dir": args.from_run, "gamma": None, "c0": None, "increments": None,
+        "dir": args.from_run, "dir_option": "--from", "gamma": None, "c0": None, "increments": None,
         "then_deflate_to": None, "then_out": None, "compare": None, "compare_step": None,
         "json": False})

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, input_file
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "evolver-energy", help="energies, volume and area of a Surface Evolver datafile or dump",
+    parser = add_command(
+        sub, "evolver-energy", help="energies, volume and area of a Surface Evolver datafile or dump",
         description="Read a Surface Evolver datafile (.fe) or dump (.dmp) and print the "
                     "stretching (linear_elastic), bending (star_perp_sq_mean_curvature) and total "
                     "energies, the enclosed volume and the area of its configuration, computed "
@@ -23,7 +25,7 @@ def _cmd(args) -> int:
     from ..energies.evolver import evolver_energy
     from ..mesh.evolver_io import read_evolver
 
-    evf = read_evolver(args.file)
+    evf = read_evolver(input_file("FILE", args.file))
     result = evolver_energy(evf)
     if args.json:
         keys = ("E_stretch", "E_bend", "E_total", "volume", "area")

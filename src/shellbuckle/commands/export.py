@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, add_number, output_file, run_folder
+from ._options import stored_step
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "export", help="export one step of a run to VTK, VTU, PLY, OBJ, STL or Surface Evolver",
+    parser = add_command(
+        sub, "export", help="export one step of a run to VTK, VTU, PLY, OBJ, STL or Surface Evolver",
         description="Write step K of the run folder DIR as a mesh file: vtk or vtu (ParaView; "
                     "point data H, displacement from the initial sphere and bending energy "
                     "density, cell data stretching energy density), ply (scalar point data), "
@@ -14,8 +17,8 @@ def register(sub) -> None:
                     "volume as the body's target, which Surface Evolver loads and can continue "
                     "from with the same energy.")
     parser.add_argument("dir", metavar="DIR", help="run folder")
-    parser.add_argument("--step", required=True, type=int, metavar="K",
-                        help="stored step number (negative counts from the last: -1 is the last)")
+    add_number(parser, "--step", "step", "stored step number (negative counts from the last: "
+               "-1 is the last)", required=True, metavar="K")
     parser.add_argument("--format", required=True, metavar="FMT", dest="fmt",
                         help="one of vtk, vtu, ply, obj, stl, fe")
     parser.add_argument("--out", metavar="PATH",
@@ -25,14 +28,14 @@ def register(sub) -> None:
 
 def _cmd(args) -> int:
     from ..export import FORMATS, default_export_path, export_step
-    from ..run import Run
 
     fmt = args.fmt.lower().lstrip(".")
     if fmt not in FORMATS:
         raise ValueError(f"--format {args.fmt!r} is not supported; allowed: {', '.join(FORMATS)}")
-    run = Run.open(args.dir)
-    step = run.step(args.step)
+    run = run_folder("DIR", args.dir)
+    step = stored_step(run, args.step)
     out = args.out if args.out else default_export_path(run, step, fmt)
+    output_file("--out", out)
     path = export_step(run, step, out, fmt=fmt)
     print(f"step {step} of {run.path} written to {path}")
     return 0

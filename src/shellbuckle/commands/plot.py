@@ -11,15 +11,16 @@ Fig. 9 of all runs together and the across-run Figs. 4, 5 and 10
 from __future__ import annotations
 
 import logging
-import math
 from pathlib import Path
+
+from ._checks import add_command, add_number, input_file, output_folder, run_folder
 
 log = logging.getLogger(__name__)
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "plot", help="write the paper's figures (Figs. 3, 4, 5, 7, 9, 10, 11, galleries) from run folders",
+    parser = add_command(
+        sub, "plot", help="write the paper's figures (Figs. 3, 4, 5, 7, 9, 10, 11, galleries) from run folders",
         description="Write the figures the runs DIR... allow, as PNG (300 dpi) and PDF: for "
                     "each run, Fig. 9 (E/kappa vs dV/V with U_sphere, U_axisym, the primary "
                     "buckling and the crossing) and the gallery of its conformations; with "
@@ -29,19 +30,19 @@ def register(sub) -> None:
                     "Conformations are seen along their dent axis and coloured by mean "
                     "curvature (docs/figures.md). Prints the files written.")
     parser.add_argument("dirs", nargs="*", metavar="DIR", help="run folder")
-    parser.add_argument("--out", default="figures", help="output folder (default: figures)")
+    parser.add_argument("--out", default="figures",
+                        help="output folder, new or existing, in an existing folder (default: "
+                             "figures)")
     parser.add_argument("--format", dest="formats", default="png,pdf",
                         help="comma-separated formats among png, pdf, svg (default png,pdf)")
-    parser.add_argument("--dpi", type=int, default=300,
-                        help="resolution of the PNG files of Figs. 3, 7, 9, 11 and the galleries, "
-                             "dots per inch (default 300; Figs. 4, 5, 10 keep their own)")
-    parser.add_argument("--at", type=float, default=None, metavar="DV",
-                        help="dV/V of Fig. 7 (default 0.854, the paper's); when given, also of "
-                             "Figs. 3 and 11 (defaults: the paper's 0.171 for Fig. 3, the "
-                             "largest dV/V both runs reached for Fig. 11)")
-    parser.add_argument("--every", type=int, default=None, metavar="K",
-                        help="the per-run gallery shows every K-th step and the last (default: "
-                             "at most 8 panels)")
+    add_number(parser, "--dpi", "dpi", "resolution of the PNG files of Figs. 3, 7, 9, 11 and "
+               "the galleries, dots per inch (default 300; Figs. 4, 5, 10 keep their own)",
+               default=300)
+    add_number(parser, "--at", "at", "dV/V of Fig. 7 (default 0.854, the paper's); when given, "
+               "also of Figs. 3 and 11 (defaults: the paper's 0.171 for Fig. 3, the largest dV/V "
+               "both runs reached for Fig. 11)", default=None, metavar="DV")
+    add_number(parser, "--every", "every", "the per-run gallery shows every K-th step and the "
+               "last (default: at most 8 panels)", default=None, metavar="K")
     parser.add_argument("--potato", metavar="DIR",
                         help="run without the zero-curvature cycle, for Fig. 3 (with --capsule)")
     parser.add_argument("--capsule", metavar="DIR",
@@ -65,12 +66,10 @@ def _formats(text: str) -> tuple:
     return formats
 
 
-def _run(path):
-    from ..run import Run
-
-    run = Run.open(path)  # ValueError naming the folder when it is not a run
+def _run(path, option: str = "DIR"):
+    run = run_folder(option, path)
     if not run.steps:
-        raise ValueError(f"{path} holds a run with no finished step yet")
+        raise ValueError(f"{option} {path}: holds a run with no finished step yet")
     return run
 
 
@@ -88,20 +87,19 @@ def _cmd(args) -> int:
     from ..plots import paper
 
     formats = _formats(args.formats)
-    if args.dpi < 50:
-        raise ValueError(f"--dpi {args.dpi}: give at least 50 dots per inch")
-    if args.at is not None and not (math.isfinite(args.at) and 0.0 <= args.at < 1.0):
-        raise ValueError(f"--at {args.at!r}: dV/V must be in [0, 1)")
     if (args.potato is None) != (args.capsule is None):
         raise ValueError("--potato and --capsule go together (Fig. 3 compares the two runs)")
     if not args.dirs and args.potato is None and args.pair is None:
         raise ValueError("nothing to plot: give run folders DIR..., --potato/--capsule or "
                          "--pair")
     runs = [_run(d) for d in args.dirs]
-    potato = (_run(args.potato), _run(args.capsule)) if args.potato is not None else None
-    pair = tuple(_run(d) for d in args.pair) if args.pair is not None else None
+    potato = ((_run(args.potato, "--potato"), _run(args.capsule, "--capsule"))
+              if args.potato is not None else None)
+    pair = tuple(_run(d, "--pair") for d in args.pair) if args.pair is not None else None
+    if args.reference is not None:
+        input_file("--reference", args.reference)
     reference = paper.load_reference(args.reference, required=False)
-    out = Path(args.out)
+    out = output_folder("--out", args.out)
     written: list[Path] = []
 
     def save(fig, stem):

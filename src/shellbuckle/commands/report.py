@@ -3,10 +3,12 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, input_file, output_file
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "report", help="write the reproduction report (our numbers next to the paper's)",
+    parser = add_command(
+        sub, "report", help="write the reproduction report (our numbers next to the paper's)",
         description="Collect the runs in DIR... (run folders, sweep folders, or folders of run "
                     "folders; nothing is recomputed), fit the buckling thresholds vs gamma and "
                     "write a report that puts our numbers next to every number of the paper's "
@@ -15,7 +17,8 @@ def register(sub) -> None:
                     "gamma/d-R captions, the figures and the provenance of every run.")
     parser.add_argument("dirs", nargs="+", metavar="DIR", help="run or sweep folder")
     parser.add_argument("--out", default=None,
-                        help="report file (default: reproduction_report.md or .html)")
+                        help="report file, in an existing folder (default: "
+                             "reproduction_report.md or .html)")
     parser.add_argument("--format", dest="fmt", default=None, choices=("md", "html"),
                         help="md (Markdown, figures as PNG files beside it) or html (one file, "
                              "figures embedded); default from the --out suffix, else md")
@@ -36,6 +39,14 @@ def _cmd(args) -> int:
         suffix = Path(args.out).suffix.lower() if args.out else ""
         fmt = "html" if suffix in (".html", ".htm") else "md"
     out = args.out or f"reproduction_report.{fmt}"
+    for folder in args.dirs:
+        if not Path(folder).exists():
+            raise FileNotFoundError(f"DIR {folder}: does not exist")
+        if not Path(folder).is_dir():
+            raise ValueError(f"DIR {folder}: is a file; expected a run or sweep folder")
+    if args.reference is not None:
+        input_file("--reference", args.reference)
+    output_file("--out", out)
     path = write_report(args.dirs, out, fmt, reference=args.reference,
                         figures=not args.no_figures)
     print(path)

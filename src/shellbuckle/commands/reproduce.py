@@ -9,12 +9,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ._checks import add_command, add_number, allowed, check_mesh, output_folder
 from ._options import add_convention_option, add_protocol_options, values
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "reproduce-paper", help="run the paper's study (sweep on Dask), write figures and report",
+    parser = add_command(
+        sub, "reproduce-paper", help="run the paper's study (sweep on Dask), write figures and report",
         description="Run Quilliet et al. (2008)'s simulations as a resumable Dask sweep: every "
                     "gamma the paper names (271 ... 29160), nu = 1/3, the paper's protocol, "
                     "several seeds, on randomized 3594-vertex meshes; plus the runs of Fig. 3 "
@@ -29,34 +30,36 @@ def register(sub) -> None:
                              "dV/V up to 0.4 (other options override it)")
     parser.add_argument("--gammas", metavar="G,..",
                         help="gamma values (default: the paper's 271,583,743,933,2333,2916,"
-                             "7465,15163,20995,29160)")
-    parser.add_argument("--seeds", type=int, metavar="N", help="seeds 0..N-1 (default 3)")
-    parser.add_argument("--vertices", type=int, nargs="+", metavar="N",
-                        help="randomized mesh size(s) (default 3594; several: a mesh-"
-                             "convergence study, e.g. --vertices 3594 10000 20000)")
-    add_protocol_options(parser, ("until", "dv"))
-    parser.add_argument("--path-increments", type=int, metavar="N",
-                        help="gamma increments of the Fig. 11 path (default 8)")
+                             "7465,15163,20995,29160); each " + allowed("gamma"))
+    add_number(parser, "--seeds", "seeds", "seeds 0..N-1 (default 3)", metavar="N")
+    add_number(parser, "--vertices", "vertices", "randomized mesh size(s) (default 3594; "
+               "several: a mesh-convergence study, e.g. --vertices 3594 10000 20000); each must "
+               "resolve every gamma (1.47 sqrt(gamma) vertices at least)", nargs="+",
+               metavar="N")
+    add_protocol_options(parser, ("until", "dv"), ranges={"until": "until_deflated"})
+    add_number(parser, "--path-increments", "path_increments",
+               "gamma increments of the Fig. 11 path (default 8)", metavar="N")
     add_convention_option(parser)
     parser.add_argument("--compare-conventions", action="store_true",
                         help="run the study under each energy convention (helfrich, paper, "
                              "evolver-modulus) in OUT/<convention>/, special runs for every "
                              "seed, and score each reading against every number of the paper: "
                              "OUT/conventions.md, .json and conventions_thresholds.png")
-    parser.add_argument("--sensitivity", type=int, metavar="SEEDS", nargs="?", const=2,
-                        help="with --compare-conventions: also the sensitivity table at gamma "
+    add_number(parser, "--sensitivity", "sensitivity", metavar="SEEDS", nargs="?", const=2,
+               help="with --compare-conventions: also the sensitivity table at gamma "
                              "2333 and 15163 under helfrich and the best other reading (jiggle "
                              "temperature 0.01/0.2, a CG quench, Evolver's bending, a 10242-"
                              "vertex mesh), with SEEDS seeds (default 2): OUT/sensitivity.md")
     parser.add_argument("--no-special", action="store_true",
                         help="only the sweep: no Fig. 3 and Fig. 11 runs")
     parser.add_argument("--formats", default="png,pdf", help="figure formats (default png,pdf)")
-    parser.add_argument("--workers", type=int, metavar="N",
-                        help="local Dask worker processes (default: cores)")
+    add_number(parser, "--workers", "workers", "local Dask worker processes (default: cores)",
+               metavar="N")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="address of a running Dask scheduler (e.g. tcp://host:8786)")
     parser.add_argument("--out", default="reproduction", metavar="DIR",
-                        help="output folder (default ./reproduction)")
+                        help="output folder (default ./reproduction): new (in an existing "
+                             "folder), empty, or a previous study to resume; never a run folder")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(func=_cmd)
 
@@ -66,7 +69,7 @@ def _cmd(args) -> int:
 
     given = {}
     if args.gammas is not None:
-        given["gammas"] = tuple(values("--gammas", args.gammas))
+        given["gammas"] = tuple(values("--gammas", args.gammas, float, "gamma"))
     for option, name in (("seeds", "seeds"), ("until", "until"), ("dv", "dv"),
                          ("path_increments", "path_increments")):
         if getattr(args, option) is not None:
@@ -78,8 +81,11 @@ def _cmd(args) -> int:
     if args.energy_convention is not None:
         given["energy_convention"] = args.energy_convention
     study = Study.quick(**given) if args.quick else Study(**given)
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    if study.dv > study.until:
+        raise ValueError(f"--until {study.until:g}: allowed: at least the step --dv "
+                         f"{study.dv:g}")
+    _check_meshes(study, args)
+    _check_out(args.out, args.compare_conventions)
     if args.workers is not None and args.scheduler is not None:
         raise ValueError("--workers applies to the local cluster; a --scheduler has its own "
                          "workers")
@@ -89,8 +95,6 @@ def _cmd(args) -> int:
         raise ValueError(f"--formats must be among png, pdf, svg; got {args.formats!r}")
     if args.sensitivity is not None and not args.compare_conventions:
         raise ValueError("--sensitivity needs --compare-conventions (it uses the best reading)")
-    if args.sensitivity is not None and args.sensitivity < 1:
-        raise ValueError(f"--sensitivity must be a number of seeds >= 1, got {args.sensitivity}")
     if args.compare_conventions:
         if args.energy_convention is not None:
             raise ValueError("--compare-conventions runs every convention; do not give "
@@ -107,6 +111,40 @@ def _cmd(args) -> int:
                               progress=not args.quiet, formats=formats)
     _print(summary, args.out)
     return 1 if summary["failed"] else 0
+
+
+def _check_meshes(study, args) -> None:
+    """The coarsest mesh resolves the largest gamma of the sweep (under every convention the
+    study runs)."""
+    from ..params import ENERGY_CONVENTIONS, bending_factor
+
+    conventions = ENERGY_CONVENTIONS if args.compare_conventions else [study.energy_convention]
+    factor = min(bending_factor(c) for c in conventions)
+    gamma, n = max(study.gammas), min(study.vertices)
+    option = "--gammas" if args.gammas is not None else "--vertices"
+    text = args.gammas if args.gammas is not None else " ".join(map(str, args.vertices or [n]))
+    check_mesh(option, text, gamma, n, gamma_effective=gamma / factor,
+               mesh=f"the {n}-vertex mesh")
+
+
+#: What a folder holds when it is a previous study (or comparison of conventions) to resume.
+STUDY_MARKS = ("reproduction.json", "conventions.json", "sweep", "special", "paths", "helfrich",
+               "paper", "evolver-modulus")
+
+
+def _check_out(out, comparison: bool) -> None:
+    """A new folder, an empty one, or a previous study; never a run folder."""
+    from ..store.run import RUN_JSON
+
+    path = output_folder("--out", out)
+    if not path.exists():
+        return
+    if (path / RUN_JSON).exists():
+        raise ValueError(f"--out {out}: is a run folder; a study needs its own folder")
+    if any(path.iterdir()) and not any((path / mark).exists() for mark in STUDY_MARKS):
+        raise ValueError(f"--out {out}: is a non-empty folder that is not a previous study "
+                         f"(none of {', '.join(STUDY_MARKS[:2])}, sweep/); give a new or empty "
+                         "folder")
 
 
 def _print(summary: dict, out) -> None:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, run_folder
 from ._options import add_run_output_options, add_threads_option
 
 
 def register(sub) -> None:
-    parser = sub.add_parser("resume", help="continue a stored run from its last finished step",
+    parser = add_command(sub, "resume", help="continue a stored run from its last finished step",
                             description="Continue the run in DIR from its last finished step; "
                                         "the result is the same as an uninterrupted run (its "
                                         "protocol is the stored one).")
@@ -20,5 +21,6 @@ def _cmd(args) -> int:
     from ..run import resume
     from ._output import report_run
 
+    run_folder("DIR", args.dir)
     return report_run(resume(args.dir, progress=not args.quiet, threads=args.threads),
                       plot=not args.no_plot)

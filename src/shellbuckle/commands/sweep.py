@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from ._checks import (RANGES, add_command, allowed, check_mesh, check_value, input_file,
+                      output_folder)
 from ._options import add_protocol_options, add_shell_options, default_gamma, values
 
 #: The protocol axes of a sweep (SweepSpec fields), as comma-separated lists.
@@ -12,11 +14,17 @@ PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
 KINDS = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
          "dv": float, "until": float, "jiggle": float, "temperature": float, "bending": str,
          "method": str, "energy_convention": str}
+#: The range (a name of ``_checks.RANGES``) of each numeric axis.
+SPANS = {"gamma": "gamma", "nu": "nu", "seeds": "seed", "vertices": "vertices",
+         "icosphere": "icosphere", "dv": "dv", "until": "until_deflated", "jiggle": "jiggle",
+         "temperature": "temperature"}
+#: Runs of one sweep at most.
+MAX_RUNS = 10_000
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "sweep", help="run a grid of deflations in parallel on Dask, resumable, with a catalogue",
+    parser = add_command(
+        sub, "sweep", help="run a grid of deflations in parallel on Dask, resumable, with a catalogue",
         description="Run every combination of the given values (gamma x nu x mesh x seeds x "
                     "protocol options) as one deflation, each in its own run folder in DIR named "
                     "from its parameters (e.g. g2333_nu0.333_v3594_s0), on a local Dask cluster "
@@ -31,19 +39,24 @@ def register(sub) -> None:
     parser.add_argument("--config", metavar="FILE.toml", help="sweep file (see examples/sweep.toml)")
     add_shell_options(parser, material=False, listed=True)
     parser.add_argument("--vertices", metavar="N,..",
-                        help="randomized spheres with N vertices (default 3594 unless --icosphere)")
+                        help="randomized spheres with N vertices (default 3594 unless --icosphere); "
+                             + allowed("vertices"))
     parser.add_argument("--icosphere", metavar="N,..",
-                        help="icosahedral spheres of level N (10 N^2 + 2 vertices)")
+                        help="icosahedral spheres of level N (10 N^2 + 2 vertices); "
+                             + allowed("icosphere"))
     add_protocol_options(parser, PROTOCOL, listed=True, flags={"seed": "--seeds"})
     add_protocol_options(parser, ("c0_cycle",))
-    parser.add_argument("--workers", metavar="N", help="local worker processes (default: cores)")
+    parser.add_argument("--workers", metavar="N", help="local worker processes (default: "
+                        "cores); " + allowed("workers"))
     parser.add_argument("--scheduler", metavar="ADDR",
                         help="address of a running Dask scheduler (e.g. tcp://host:8786)")
     parser.add_argument("--no-analysis", action="store_true",
                         help="do not classify the steps of finished runs (no thresholds or W)")
     parser.add_argument("--no-retry", action="store_true", help="do not rerun failed runs")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--out", required=True, metavar="DIR", help="sweep folder")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="sweep folder: new (in an existing folder), empty, or a previous "
+                             "sweep to resume")
     parser.set_defaults(func=_cmd)
 
 
@@ -52,15 +65,19 @@ def _cmd(args) -> int:
 
     from ..sweep import SweepSpec, check_scheduler, run_sweep
 
-    given = {name: values(f"--{name.replace('_', '-')}", getattr(args, name), kind)
+    given = {name: values(_flag(name), getattr(args, name), kind, SPANS.get(name, ""))
              for name, kind in KINDS.items() if getattr(args, name) is not None}
     if args.no_c0_cycle:
         given["c0_cycle"] = False
     workers = _workers(args)
     check_scheduler(args.scheduler)
     defaults = {"gamma": [default_gamma()]}  # the one default gamma of the command line
+    if args.config:
+        input_file("--config", args.config)
+    _out(args.out)
     spec = (SweepSpec.from_toml(args.config, defaults=defaults, **given) if args.config
             else SweepSpec.from_dict(defaults | given))
+    _check(spec, given, args.config, args.gamma)
     catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
                           progress=not args.quiet, analyze=not args.no_analysis,
                           retry_failed=not args.no_retry)
@@ -79,9 +96,47 @@ def _workers(args) -> int | None:
     if args.workers is None:
         return None
     workers = values("--workers", args.workers, int)
-    if len(workers) != 1 or workers[0] < 1:
-        raise ValueError(f"--workers: {args.workers!r} must be one integer >= 1")
+    if len(workers) != 1:
+        raise ValueError(f"--workers {args.workers}: allowed: one {RANGES['workers']}")
+    check_value("--workers", "workers", workers[0], args.workers)
     if args.scheduler is not None:
         raise ValueError("--workers applies to the local cluster; a --scheduler has its "
                          "own workers")
     return workers[0]
+
+
+def _flag(name: str) -> str:
+    return f"--{name.replace('_', '-')}"
+
+
+def _out(out) -> None:
+    """A sweep folder: new, empty, or a sweep (run_sweep says so); never a run folder."""
+    from pathlib import Path
+
+    from ..store.run import RUN_JSON
+
+    path = output_folder("--out", out)
+    if (Path(path) / RUN_JSON).exists():
+        raise ValueError(f"--out {out}: is a run folder; a sweep needs its own folder")
+
+
+def _check(spec, given: dict, config, gamma_text=None) -> None:
+    """Every value of the sweep in its range (values from --config too), at most
+    :data:`MAX_RUNS` runs, and every mesh resolving every gamma."""
+    from ..params import bending_factor
+
+    for name, span in SPANS.items():
+        where = _flag(name) if name in given or not config else f"--config {config}: {name}"
+        for value in getattr(spec, name, None) or ():
+            if value is not None:
+                check_value(where, span, value)
+    if len(spec) > MAX_RUNS:
+        raise ValueError(f"--out: the sweep has {len(spec)} runs; allowed: at most {MAX_RUNS}")
+    meshes = [(n, f"--vertices {n}") for n in spec.vertices or ()]
+    meshes += [(10 * n ** 2 + 2, f"--icosphere {n}") for n in spec.icosphere or ()]
+    if not meshes:
+        meshes = [(3594, "the default 3594-vertex mesh")]
+    factor = min(bending_factor(c) for c in spec.energy_convention)
+    gamma = max(spec.gamma)
+    n, mesh = min(meshes)
+    check_mesh("--gamma", gamma_text or f"{gamma:g}", gamma, n, gamma_effective=gamma / factor, mesh=mesh)

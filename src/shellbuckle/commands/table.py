@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import sys
 
+from ._checks import add_command, run_folder
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "table", help="print the per-step table of a run",
+    parser = add_command(
+        sub, "table", help="print the per-step table of a run",
         description="Print the per-step table of the run folder DIR: one row per finished "
                     "step, columns step, target_dV_over_V, dV_over_V, E_total, E_bend, "
                     "E_stretch, E_over_kappa, E_before_c0_cycle, pressure, grad_norm, "
@@ -19,9 +21,7 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    from ..store import RunStore
-
-    store = RunStore.open(args.dir)
+    store = run_folder("DIR", args.dir).store
     table = store.table()
     if args.csv:  # CSV stays plain for parsers; run.json holds the parameters
         sys.stdout.write(table.to_csv(index=False, lineterminator="\n"))

@@ -4,19 +4,21 @@ from __future__ import annotations
 
 import sys
 
+from ._checks import add_command, output_file
 from ._options import add_shell_options
 
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "theory", help="plot the paper's theory curves and print the buckling estimates",
+    parser = add_command(
+        sub, "theory", help="plot the paper's theory curves and print the buckling estimates",
         description="Plot U_sphere (small strain and exact), U_axisym and the crossing of "
                     "Quilliet et al. (2008) section 3 against dV/V, write the figure, and print "
                     "d/R, the crossing U_sphere = U_axisym and the classical threshold. "
                     "Energies in units of kappa, pressures in kappa/R^3.")
     add_shell_options(parser, material=False, defaults=True, convention_default="helfrich")
     parser.add_argument("--out", default="shellbuckle_theory.png",
-                        help="figure file, .png or .pdf (default shellbuckle_theory.png)")
+                        help="figure file, .png or .pdf, in an existing folder (default "
+                             "shellbuckle_theory.png)")
     parser.add_argument("--json", action="store_true",
                         help="print the numbers as one JSON object")
     parser.set_defaults(func=_cmd)
@@ -25,21 +27,17 @@ def register(sub) -> None:
 def _cmd(args) -> int:
     import json
     import warnings
-    from pathlib import Path
-
     from ..params import ShellParameters
     from ..plots.theory import plot_theory
     from ..theory import summary
 
+    out = output_file("--out", args.out, suffixes=(".png", ".pdf"))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         params = ShellParameters.from_gamma(args.gamma, nu=args.nu,
                                             energy_convention=args.energy_convention)
     for w in caught:
         print(f"shellbuckle theory: warning: {w.message}", file=sys.stderr)
-    out = Path(args.out)
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"--out: directory {str(out.parent)!r} does not exist")
     plot_theory(params, path=out)
     info = summary(params)
     if args.json:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from ._checks import add_command, output_file, run_folder
+
 
 def register(sub) -> None:
-    parser = sub.add_parser(
-        "view", help="write a self-contained interactive HTML page of a run",
+    parser = add_command(
+        sub, "view", help="write a self-contained interactive HTML page of a run",
         description="Write one self-contained HTML file (no network access needed to open it) "
                     "showing the surface of every stored step of the run folder DIR: a step "
                     "slider and play button, drag to rotate, wheel to zoom, a colour legend, "
@@ -25,12 +27,11 @@ def _cmd(args) -> int:
     from pathlib import Path
 
     from ..plots.viewer import COLORS, write_html
-    from ..run import Run
-
     if args.color not in COLORS:
         raise ValueError(f"--color must be one of {', '.join(COLORS)}, got {args.color!r}")
-    run = Run.open(args.dir)
+    run = run_folder("DIR", args.dir)
     out = Path(args.out) if args.out else run.path / "view.html"
+    output_file("--out", out, suffixes=(".html", ".htm"))
     path = write_html(run, out, color=args.color)
     print(f"{path} ({path.stat().st_size / 1e6:.2f} MB, {len(run.steps)} steps)")
     return 0

@@ -1,0 +1,466 @@
+"""Bad input refused before any work, in one line that names the option, the value as typed
+and what is allowed (docs/errors.md).
+
+- :data:`RANGES`: the allowed range of every numeric option, with the reason (what the physics
+  or the machine can do). :func:`add_number` declares an option with its range, which its
+  ``--help`` shows; :class:`Number`, the option's ``type``, never fails: a value that is not a
+  number or out of range becomes an :class:`Invalid`, which :class:`CommandParser` turns into a
+  ``ValueError`` (exit code 2, :func:`shellbuckle.cli.main`) before the command runs.
+- :class:`CommandParser`: the parser of every sub-command (:func:`add_command`). Its errors
+  (an unknown option, a missing argument, a bad choice) are one line, exit code 2; it reads
+  ``-1e3`` as a negative number, not as an option; it prints warnings as one line.
+- The rules that involve several options: :func:`check_mesh` (the mesh must resolve the
+  elastic length), :func:`check_c0`, :func:`check_pressures`, :func:`check_steps`,
+  :func:`check_parallel`; and the paths: :func:`input_file`, :func:`run_folder`,
+  :func:`output_file`, :func:`output_folder`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import re
+import sys
+import warnings
+from pathlib import Path
+
+#: Most vertices of a mesh: a Newton step factorizes the sparse 3N x 3N Hessian, whose fill-in
+#: at 10^6 vertices already takes tens of GB of memory.
+MAX_VERTICES = 1_000_000
+#: Fewest vertices of a mesh: a dent with its rim needs a vertex, its ring of neighbours and
+#: the next ring (1 + 6 + 12 vertices) with the rest of the shell around them.
+MIN_VERTICES = 20
+#: Most stored steps of one run (volume steps, schedule values, path increments): every step is
+#: a full minimization and a stored conformation (20000 steps of the 3594-vertex mesh take
+#: about 2 GB and days of computing).
+MAX_STEPS = 20_000
+#: Threads or worker processes per core at most: more only share the same cores.
+PER_CORE = 4
+#: Edges per buckling wavelength 2 pi l_el at least (the mesh resolves the elastic length).
+EDGES_PER_WAVELENGTH = 2
+
+
+def cores() -> int:
+    """The cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+# --------------------------------------------------------------------------- ranges
+
+def _g(x) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """An interval ``[low, high]`` (``low_open``/``high_open``: excluded ends; None: no end),
+    of integers with ``integer``; ``nonzero`` excludes 0. ``reason``: why these ends."""
+
+    low: float | None
+    high: float | None
+    low_open: bool = False
+    high_open: bool = False
+    integer: bool = False
+    nonzero: bool = False
+    reason: str = ""
+
+    def __str__(self) -> str:
+        kind = "an integer" if self.integer else "a number"
+        if self.low is not None and self.high is not None:
+            text = (f"{kind} in {'(' if self.low_open else '['}{_g(self.low)}, "
+                    f"{_g(self.high)}{')' if self.high_open else ']'}")
+        elif self.low is not None:
+            text = f"{kind} {'>' if self.low_open else '>='} {_g(self.low)}"
+        elif self.high is not None:
+            text = f"{kind} {'<' if self.high_open else '<='} {_g(self.high)}"
+        else:
+            text = f"a finite {kind[2:]}" if not self.integer else kind
+        return text + (", not 0" if self.nonzero else "")
+
+    def explained(self) -> str:
+        return f"{self}" + (f" ({self.reason})" if self.reason else "")
+
+    def problem(self, value) -> str | None:
+        """None when ``value`` is allowed, else what is wrong, with the range and its reason."""
+        if not math.isfinite(value):
+            return f"not a finite number; allowed: {self.explained()}"
+        low_bad = self.low is not None and (value <= self.low if self.low_open
+                                            else value < self.low)
+        high_bad = self.high is not None and (value >= self.high if self.high_open
+                                              else value > self.high)
+        if low_bad or high_bad or (self.nonzero and value == 0):
+            return f"allowed: {self.explained()}"
+        return None
+
+
+_DV = ("dV/V steps smaller than 1e-4 take more than 10^4 steps to reach 1; above 0.5 one step "
+       "takes half the volume")
+_DVV = "dV/V = 0.99 leaves 1% of the volume, -1 doubles it"
+
+#: The allowed range of every numeric option, by name (docs/errors.md lists them).
+RANGES = {
+    "gamma": Range(1, 1e11, reason="gamma = 12 (1 - 2 nu^2/(1-nu)) (R/d)^2 is 8 for a shell as "
+                   "thick as its radius at nu = 1/3; above 1e11 the mesh that resolves the "
+                   f"elastic length needs more than {MAX_VERTICES} vertices"),
+    "nu": Range(-1, 0.5, low_open=True, high_open=True,
+                reason="the 2D Poisson ratio where the thickness d/R = sqrt(12 (1 - 2 nu^2/"
+                       "(1-nu))/gamma) is defined; above 1/3 no isotropic 3D material has it "
+                       "(a warning)"),
+    "E": Range(0, 1e100, low_open=True, reason="a 3D Young modulus, any units"),
+    "sigma": Range(-0.5, 0.5, low_open=True,
+                   reason="the 3D Poisson ratio of a material whose 2D modulus A is > 0"),
+    "d": Range(0, 1e100, low_open=True, reason="a thickness, below --R"),
+    "R": Range(0, 1e100, low_open=True, reason="a radius, any units"),
+    "vertices": Range(MIN_VERTICES, MAX_VERTICES, integer=True,
+                      reason=f"a dent and its rim need about {MIN_VERTICES} vertices; above "
+                             f"{MAX_VERTICES} a Newton step needs tens of GB of memory"),
+    "icosphere": Range(2, 316, integer=True,
+                       reason=f"10 N^2 + 2 vertices, from {MIN_VERTICES} to {MAX_VERTICES}"),
+    "seed": Range(0, 2 ** 32 - 1, integer=True, reason="a 32-bit random seed"),
+    "seeds": Range(1, 100, integer=True, reason="each seed is a full study"),
+    "dv": Range(1e-4, 0.5, reason=_DV),
+    "dv_signed": Range(-0.5, 0.5, nonzero=True, reason="a negative step re-inflates; " + _DV),
+    "until": Range(-1, 0.99, low_open=True, high_open=True, reason=_DVV),
+    "until_deflated": Range(0, 0.99, low_open=True, high_open=True,
+                            reason="dV/V = 0.99 leaves 1% of the volume"),
+    "schedule": Range(-1, 0.99, low_open=True, high_open=True, reason=_DVV),
+    "pressures": Range(-1e12, 1e12, reason="an overpressure in kappa/R^3; the shell's own "
+                       "limits, -gamma to the classical buckling pressure, are checked next"),
+    "temperature": Range(0, 1, reason="Surface Evolver's jiggle scale"),
+    "jiggle": Range(0, 0.5, reason="a fraction of the mean edge: more tangles the mesh"),
+    "max_iter": Range(1, 100_000, integer=True,
+                      reason="each Newton step is a sparse factorization"),
+    "c0": Range(-1e6, 1e6, reason="a curvature c1 + c2 in 1/length; the mesh's own limit, "
+                                  "2/(mean edge), is checked next"),
+    "step": Range(-10 ** 9, 10 ** 9, integer=True,
+                  reason="a stored step; negative counts from the last"),
+    "threads": Range(1, PER_CORE * cores(), integer=True,
+                     reason=f"{PER_CORE} per core of the {cores()} this process may use: more "
+                            "only slow the factorization"),
+    "workers": Range(1, PER_CORE * cores(), integer=True,
+                     reason=f"{PER_CORE} per core of the {cores()} this process may use; a "
+                            "Dask --scheduler has its own workers"),
+    "increments": Range(0, MAX_STEPS, integer=True,
+                        reason="each increment is a minimization and a stored step"),
+    "path_increments": Range(1, MAX_STEPS, integer=True,
+                             reason="each increment is a minimization and a stored step"),
+    "sensitivity": Range(1, 100, integer=True, reason="each seed is a set of runs"),
+    "dpi": Range(50, 1200, integer=True, reason="below 50 nothing is legible; a figure at "
+                 "1200 dpi is already about 10000 pixels wide (hundreds of MB in memory)"),
+    "at": Range(0, 1, high_open=True, reason="a dV/V"),
+    "every": Range(1, MAX_STEPS, integer=True, reason="every K-th stored step"),
+}
+
+
+def allowed(name: str) -> str:
+    """The range of option ``name`` as the help shows it: ``allowed: ...``."""
+    return f"allowed: {RANGES[name].explained()}"
+
+
+class Invalid:
+    """A value that is not a number or not in its range, with what is wrong (``problem``): the
+    option's ``type`` returns it, :class:`CommandParser` refuses it before the command runs."""
+
+    def __init__(self, text: str, problem: str):
+        self.text, self.problem = text, problem
+
+    def __repr__(self) -> str:
+        return f"Invalid({self.text!r})"
+
+
+class Number:
+    """The ``type`` of a numeric option: the value, or an :class:`Invalid`."""
+
+    def __init__(self, name: str):
+        self.name, self.range = name, RANGES[name]
+        self.__name__ = "integer" if self.range.integer else "number"
+
+    def __call__(self, text):
+        text = str(text)
+        try:
+            value = int(text.strip()) if self.range.integer else float(text)
+        except ValueError:
+            return Invalid(text, f"not {'an integer' if self.range.integer else 'a number'}; "
+                                 f"{allowed(self.name)}")
+        problem = self.range.problem(value)
+        return Invalid(text, problem) if problem else value
+
+
+def check_value(option: str, name: str, value, text=None):
+    """``value`` if it is in the range ``RANGES[name]``, else ``ValueError`` naming ``option``
+    and the value as typed (``text``; else the value)."""
+    if isinstance(value, Invalid):
+        raise ValueError(f"{option} {value.text}: {value.problem}")
+    problem = RANGES[name].problem(value)
+    if problem:
+        raise ValueError(f"{option} {_typed(text, value)}: {problem}")
+    return value
+
+
+def typed(args, flag: str, value=None) -> str:
+    """``flag``'s value as typed on the command line (its last occurrence), else ``value``."""
+    argv = getattr(args, "typed_argv_", None) or []
+    found = None
+    for i, word in enumerate(argv):
+        if word == flag and i + 1 < len(argv):
+            found = argv[i + 1]
+        elif word.startswith(flag + "="):
+            found = word[len(flag) + 1:]
+    return found if found is not None else _typed(None, value)
+
+
+def _typed(text, value) -> str:
+    if text is not None:
+        return str(text)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def add_number(parser, flag: str, name: str, help: str, **kwargs):
+    """Add the numeric option ``flag`` (range ``RANGES[name]``, shown in the help)."""
+    return parser.add_argument(flag, type=Number(name),
+                               help=f"{help}; {allowed(name)}".replace("%", "%%"), **kwargs)
+
+
+# --------------------------------------------------------------------------- the parser
+
+#: What argparse reads as a negative number rather than an option: -1, -.5, -1e3, -1:2, -inf.
+NEGATIVE_NUMBER = re.compile(r"^-\.?\d|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The parser of a sub-command: one-line errors (exit code 2), ``-1e3`` read as a number,
+    values of :class:`Number` options checked before the command runs, warnings in one line."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
+
+    def error(self, message):
+        message = re.sub(r"^argument ([^:]+): ", r"\1: ", message)
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        namespace.typed_argv_ = list(sys.argv[1:] if args is None else args)
+        return namespace, extras
+
+    def set_defaults(self, **kwargs):
+        if "func" in kwargs:
+            kwargs["func"] = _Checked(kwargs["func"], self)
+        super().set_defaults(**kwargs)
+
+
+class _Checked:
+    """A command that first refuses an :class:`Invalid` value, then runs with warnings printed
+    as one line."""
+
+    def __init__(self, func, parser):
+        self.func, self.parser = func, parser
+
+    def __call__(self, args):
+        for action in self.parser._actions:
+            value = getattr(args, action.dest, None)
+            for item in value if isinstance(value, list) else [value]:
+                if isinstance(item, Invalid):
+                    option = action.option_strings[0] if action.option_strings else \
+                        (action.metavar or action.dest)
+                    raise ValueError(f"{option} {item.text}: {item.problem}")
+        prog = self.parser.prog
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            print(f"{prog}: warning: {message}", file=sys.stderr)
+
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            return self.func(args)
+
+
+def add_command(sub, name: str, **kwargs):
+    """``sub.add_parser(name, **kwargs)`` as a :class:`CommandParser`."""
+    previous = sub._parser_class
+    sub._parser_class = CommandParser
+    try:
+        return sub.add_parser(name, **kwargs)
+    finally:
+        sub._parser_class = previous
+
+
+# --------------------------------------------------------------------------- rules of several options
+
+def mean_edge(n_vertices: int) -> float:
+    """Mean edge / R of a closed triangulated sphere of ``n_vertices``: its 2 (N - 2) faces,
+    near equilateral, cover 4 pi R^2, so a^2 = 8 pi / (sqrt(3) (N - 2))."""
+    return math.sqrt(8.0 * math.pi / (math.sqrt(3.0) * max(n_vertices - 2, 1)))
+
+
+def vertices_needed(gamma_effective: float) -> int:
+    """Vertices of a sphere whose mean edge is at most pi l_el, half the classical buckling
+    wavelength 2 pi l_el (l_el = R gamma^(-1/4)): N >= 8 sqrt(gamma) / (sqrt(3) pi) + 2."""
+    return math.ceil(8.0 * math.sqrt(gamma_effective) / (math.sqrt(3.0) * math.pi)) + 2
+
+
+def gamma_resolved(n_vertices: int) -> float:
+    """The largest (effective) gamma a mesh of ``n_vertices`` resolves."""
+    return (math.sqrt(3.0) * math.pi * (n_vertices - 2) / 8.0) ** 2
+
+
+MESH_RULE = ("the mesh must resolve the elastic length l_el = R gamma^(-1/4): at least "
+             f"{EDGES_PER_WAVELENGTH} edges per classical buckling wavelength 2 pi l_el, a mean "
+             "edge sqrt(8 pi/(sqrt(3) N)) R <= pi l_el, i.e. N >= 1.47 sqrt(gamma) vertices")
+
+
+def check_mesh(option: str, text, gamma: float, n_vertices: int, *, gamma_effective=None,
+               mesh: str = "the mesh") -> None:
+    """``ValueError`` when a mesh of ``n_vertices`` cannot resolve the elastic length at
+    ``gamma`` (:data:`MESH_RULE`); ``gamma_effective`` under another energy convention."""
+    g = gamma if gamma_effective is None else gamma_effective
+    need = vertices_needed(g)
+    if n_vertices >= need:
+        return
+    l_el = g ** -0.25
+    under = "" if gamma_effective is None or gamma_effective == gamma else \
+        f" (effective gamma {g:g} under the energy convention)"
+    raise ValueError(
+        f"{option} {text}: the mesh cannot resolve the elastic length{under}: gamma = {g:g} "
+        f"needs edges shorter than pi l_el = {math.pi * l_el:.3g} R (l_el = R gamma^-1/4 = "
+        f"{l_el:.3g} R): about {need} vertices, and {mesh} has {n_vertices} (mean edge "
+        f"{mean_edge(n_vertices):.3g} R; it resolves gamma <= {gamma_resolved(n_vertices):.4g})")
+
+
+def check_c0(option: str, text, c0: float, n_vertices: int, R: float = 1.0) -> None:
+    """``ValueError`` when the preferred radius 2/|c0| is shorter than the mean edge."""
+    limit = 2.0 / (mean_edge(n_vertices) * R)
+    if abs(c0) > limit:
+        raise ValueError(f"{option} {_typed(text, c0)}: allowed |c0| <= {limit:.4g} on "
+                         f"{n_vertices} vertices (the preferred radius 2/|c0| must be at least "
+                         f"the mean edge {mean_edge(n_vertices) * R:.3g}; c0 = 2/R = {2 / R:g} "
+                         "is the stress-free sphere)")
+
+
+def check_pressures(option: str, texts, pressures, params) -> None:
+    """Each overpressure (units kappa/R^3) in [-gamma, p_c): above the classical buckling
+    pressure p_c a pressure-controlled shell has no equilibrium near the sphere (it turns
+    inside out); below -gamma the shell more than doubles its volume."""
+    from ..theory import classical_threshold
+
+    p_c = classical_threshold(params).pressure * params.R ** 3 / params.kappa
+    low = -params.gamma
+    for text, p in zip(texts, pressures):
+        if not low <= p < p_c:
+            raise ValueError(f"{option} {text}: allowed overpressures in [{low:g}, {p_c:.6g}) "
+                             f"kappa/R^3 at gamma = {params.gamma:g} (above the classical "
+                             "buckling pressure p_c = 4 sqrt(kappa A)/R^2 a pressure-controlled "
+                             "shell turns inside out; below -gamma it more than doubles its "
+                             "volume)")
+
+
+def check_steps(option: str, text, n_steps: float) -> None:
+    """``ValueError`` when a run would have more than :data:`MAX_STEPS` steps."""
+    if n_steps > MAX_STEPS:
+        raise ValueError(f"{option} {text}: {n_steps:.0f} steps; allowed: at most {MAX_STEPS} "
+                         "steps in one run (each is a minimization and a stored step)")
+
+
+def check_parallel(option: str, n) -> int | None:
+    """``n`` threads or workers, refused above :data:`PER_CORE` per core."""
+    if n is None:
+        return None
+    name = option.lstrip("-")
+    return check_value(option, name if name in RANGES else "threads", n)
+
+
+def floats(option: str, text: str, name: str) -> list[float]:
+    """The comma-separated numbers of ``option``, each in ``RANGES[name]``."""
+    out = []
+    for item in (part.strip() for part in text.split(",")):
+        if not item:
+            continue
+        try:
+            value = float(item)
+        except ValueError:
+            raise ValueError(f"{option} {item}: not a number; {allowed(name)}") from None
+        check_value(option, name, value, item)
+        out.append(value)
+    if not out:
+        raise ValueError(f"{option} {text!r}: no value; {allowed(name)}")
+    return out
+
+
+# --------------------------------------------------------------------------- paths
+
+def input_file(option: str, path) -> Path:
+    """An existing, readable file (not a folder)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{option} {path}: does not exist")
+    if path.is_dir():
+        raise ValueError(f"{option} {path}: is a folder; expected a file")
+    if not os.access(path, os.R_OK):
+        raise ValueError(f"{option} {path}: cannot be read (permissions)")
+    return path
+
+
+def _parent(option: str, path: Path) -> None:
+    """The folder of ``path`` exists, is a folder and is writable."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.exists():
+        missing = parent
+        while not missing.parent.exists() and missing.parent != missing:
+            missing = missing.parent
+        if missing.parent.exists() and not missing.parent.is_dir():
+            raise ValueError(f"{option} {path}: {missing.parent} is a file, not a folder")
+        raise FileNotFoundError(f"{option} {path}: the folder {parent} does not exist "
+                                "(create it first)")
+    if not parent.is_dir():
+        raise ValueError(f"{option} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: the folder {parent} is not writable")
+
+
+def output_file(option: str, path, suffixes=()) -> Path:
+    """A file to write: not a folder, in an existing writable folder, with one of
+    ``suffixes`` when given."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{option} {path}: is a folder; expected a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise ValueError(f"{option} {path}: allowed suffixes {', '.join(suffixes)}")
+    _parent(option, path)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise ValueError(f"{option} {path}: the file exists and is not writable")
+    return path
+
+
+def output_folder(option: str, path, *, run: bool = False) -> Path:
+    """A folder to write in: an existing writable folder, or a new one in an existing writable
+    folder. ``run``: a run folder, which may be a previous run there (it is resumed or
+    refused by the run's own rules)."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise ValueError(f"{option} {path}: is an existing file; expected a folder")
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise ValueError(f"{option} {path}: the folder is not writable")
+        return path
+    _parent(option, path)
+    return path
+
+
+def run_folder(option: str, path):
+    """The :class:`~shellbuckle.run.Run` in ``path``; ``ValueError`` naming the option."""
+    from ..run import Run
+
+    try:
+        return Run.open(path)
+    except (ValueError, FileNotFoundError) as exc:
+        message = str(exc)
+        if str(path) in message:
+            message = message.replace(str(path), "").lstrip(" :")
+        raise ValueError(f"{option} {path}: {message}") from None
