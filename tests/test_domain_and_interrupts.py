@@ -147,8 +147,8 @@ def test_an_interrupt_inside_a_compiled_call_ends_as_interrupted(tmp_path, monke
                  "--threads", "1", "--quiet", "--no-plot", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 130 and "interrupted" in err and "failed" not in err
-    assert _status(out) == ("interrupted", f"interrupted after step 1; `shellbuckle resume "
-                                           f"{out}` continues it")
+    message = f"interrupted after step 1; `shellbuckle resume {out}` continues it"
+    assert _status(out) == ("interrupted", message)
     assert interrupt_of(ValueError("plain")) is None
 
 
@@ -191,7 +191,7 @@ def _signal_run(out, signum: int, delay: float, schedule=LONG):
         _command() + CLI_RUN + schedule + ["--out", str(out)], stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True,
         # a child of a shell in the background may inherit SIGINT ignored
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # noqa: PLW1509
     deadline = time.monotonic() + 120
     while not (out / "run.json").exists():
         assert child.poll() is None, child.communicate()
