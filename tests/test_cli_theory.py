@@ -57,10 +57,10 @@ def test_thick_shell_without_crossing_still_plots(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["--gamma", "-1"], ["gamma", "> 0"]),
-    (["--gamma", "nan"], ["gamma"]),
-    (["--nu", "1.5"], ["nu", "(-1, 1)"]),
-    (["--nu", "0.6"], ["nu", "1/2"]),
+    (["--gamma", "-1"], ["--gamma -1", "[1, 1e11]"]),
+    (["--gamma", "nan"], ["--gamma nan", "finite"]),
+    (["--nu", "1.5"], ["--nu 1.5", "(-1, 0.5)"]),
+    (["--nu", "0.6"], ["--nu 0.6", "(-1, 0.5)", "d/R"]),
 ])
 def test_bad_values_exit_2_with_a_message(tmp_path, capsys, argv, words):
     out = tmp_path / "never.png"

@@ -158,7 +158,7 @@ def test_reinflation_branch_keeps_the_reference(tmp_path, uninterrupted):
     (["deflate", "--dv", "0"], "dv"),
     (["deflate", "--until", "1.2"], "dV/V"),
     (["deflate", "--jiggle", "-1"], "jiggle"),
-    (["deflate", "--vertices", "2"], "n_vertices"),
+    (["deflate", "--vertices", "2"], "--vertices 2"),
     (["deflate", "--mesh", "/nonexistent/shell.fe"], "does not exist"),
     (["resume", "/nonexistent/run"], "run"),
 ])

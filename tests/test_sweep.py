@@ -162,9 +162,9 @@ def test_a_folder_name_never_changes_meaning(tmp_path):
 
 
 @pytest.mark.parametrize("argv, named", [
-    (["--gamma", "271,abc"], "'abc'"), (["--nu", "1.5"], "nu = 1.5"),
+    (["--gamma", "271,abc"], "'abc'"), (["--nu", "1.5"], "--nu 1.5"),
     (["--seeds", "2-0"], "'2-0'"), (["--icosphere", "three"], "'three'"),
-    (["--method", "bfgs"], "'bfgs'"), (["--workers", "0"], "'0'"),
+    (["--method", "bfgs"], "'bfgs'"), (["--workers", "0"], "--workers 0"),
     (["--scheduler", "no address"], "no address"), (["--dv", "0.05", "--until", "0.02"], "until"),
     (["--config", "missing.toml"], "missing.toml"),
 ])

@@ -53,7 +53,7 @@ def cores() -> int:
 # --------------------------------------------------------------------------- ranges
 
 def _g(x) -> str:
-    return str(x) if isinstance(x, int) else f"{x:g}"
+    return str(x) if isinstance(x, int) else f"{x:g}".replace("e+", "e")
 
 
 @dataclasses.dataclass(frozen=True)
