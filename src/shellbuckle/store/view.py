@@ -17,7 +17,7 @@ import numpy as np
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..protocol.deflate import Protocol
-from .run import RunStore
+from .run import RunStore, _span
 
 
 class Run:
@@ -26,6 +26,8 @@ class Run:
     ``table`` is a pandas DataFrame with the SPEC §7 columns; ``positions(k)`` the vertex
     positions of step ``k``; ``mesh(k)`` a :class:`~shellbuckle.mesh.Mesh` of step ``k``;
     ``step(k)`` the stored step that index ``k`` means (negative counts from the last).
+    A damaged step file is left out of ``steps`` and ``table`` and named in ``damaged``
+    (:attr:`RunStore.damaged <shellbuckle.store.run.RunStore.damaged>`); the others read.
     """
 
     def __init__(self, store: RunStore):
@@ -62,7 +64,14 @@ class Run:
 
     @property
     def steps(self) -> list[int]:
+        """The good finished steps (a damaged step file is left out: :attr:`damaged`)."""
         return self.store.steps
+
+    @property
+    def damaged(self) -> dict[int, str]:
+        """Damaged steps, ``{step: what is wrong}`` naming the file (empty for a whole run);
+        they are left out of :attr:`steps` and :attr:`table`."""
+        return self.store.damaged
 
     @property
     def faces(self) -> np.ndarray:
@@ -79,8 +88,13 @@ class Run:
         if k < 0 and -len(steps) <= k:
             return steps[k]
         if k not in steps:
+            damaged = self.store.damaged
+            if k in damaged:
+                raise ValueError(f"step {k} of run {str(self.path)!r} is damaged: {damaged[k]}; "
+                                 f"allowed steps: {_span(steps)} (or -1 .. -{len(steps)} "
+                                 "counted from the last)")
             raise ValueError(f"step {k} is not a finished step of run {str(self.path)!r}; "
-                             f"allowed steps: {steps[0]}..{steps[-1]} (or -1 .. "
+                             f"allowed steps: {_span(steps)} (or -1 .. "
                              f"-{len(steps)} counted from the last)")
         return int(k)
 
