@@ -86,7 +86,6 @@ import math
 import operator
 import os
 import platform
-import re
 import subprocess
 import sys
 import uuid
@@ -119,7 +118,6 @@ TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
 WRITER_LOCK, ANALYSIS_LOCK = ".lock", ".analysis.lock"
 _WRITER_FILES = {RUN_JSON, MESH_H5, TABLE_CSV}
 _INTEGER_COLUMNS = {"step", "iterations", "inertia", "n_dimples", "corners", "W"}
-_STEP_RE = re.compile(r"^step_(\d+)\.h5$")
 #: Attribute of a step file holding the checksums of its content (JSON), and of mesh.h5
 #: holding a copy of run.json as created.
 CHECKSUM_ATTR, DESCRIPTION_ATTR = "sha256", "run_json"
@@ -344,7 +342,7 @@ def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
                 except KeyError:
                     X = None
             if parts in ("all", "arrays"):
-                group = f["arrays"] if "arrays" in f else None
+                group = f.get("arrays")
                 arrays = {key: group[key][()] for key in group} if group is not None else {}
     except (OSError, KeyError, ValueError, RuntimeError, TypeError, AttributeError,
             UnicodeDecodeError) as exc:

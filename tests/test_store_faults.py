@@ -1,0 +1,323 @@
+"""Damaged run folders: the good steps stay readable, the damaged ones are named, and a resume
+heals a damaged last step or explains a damaged middle one.
+
+Oracles: the same small run read before the fault (its table and positions, bit for bit), and
+the determinism of the protocol given the seed and the step index (a resumed run equals the
+uninterrupted one bit for bit, tests/test_run.py), so a step computed again after it was set
+aside equals the step it replaces in every column but its wall time.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import re
+import shutil
+from contextlib import redirect_stderr, redirect_stdout
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from shellbuckle import cli
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.run import Run, deflate, resume
+from shellbuckle.store import RunStore
+
+PARAMS = ShellParameters.from_gamma(271.0, nu=1 / 3)
+OPTIONS = dict(dv=0.03, until=0.18, jiggle=0.02, seed=7, threads=1)  # steps 0..6
+MIDDLE, LAST = 3, 6
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """A finished small run (162 vertices, steps 0..6), its table and positions."""
+    run = deflate(icosphere(4), PARAMS, out=tmp_path_factory.mktemp("ref") / "run", **OPTIONS)
+    assert run.status == "finished" and run.steps == list(range(LAST + 1))
+    return run.path, run.table, {k: run.positions(k) for k in run.steps}
+
+
+@pytest.fixture
+def folder(tmp_path, reference):
+    """A fresh copy of the reference run to damage."""
+    return shutil.copytree(reference[0], tmp_path / "run")
+
+
+def _step(folder, k):
+    return folder / "steps" / f"step_{k:06d}.h5"
+
+
+def _same_rows(table, expected, ignore=()):
+    cols = [c for c in expected.columns if c not in ignore]
+    pd.testing.assert_frame_equal(table[cols].reset_index(drop=True),
+                                  expected[cols].reset_index(drop=True), check_exact=True)
+
+
+# ----------------------------------------------------------------------------- step faults
+
+def _truncate(path):
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _empty(path):
+    path.write_bytes(b"")
+
+
+def _junk(path):
+    path.write_bytes(np.random.default_rng(0).bytes(path.stat().st_size))
+
+
+def _flip_positions(path):
+    # a few bytes inside X's raw data: the file still opens, only the checksum can tell
+    with h5py.File(path, "r") as f:
+        offset = f["X"].id.get_offset()
+    data = bytearray(path.read_bytes())
+    data[offset + 100: offset + 104] = bytes(b ^ 0x5A for b in data[offset + 100: offset + 104])
+    path.write_bytes(bytes(data))
+
+
+def _break_record(path):
+    with h5py.File(path, "a") as f:
+        f.attrs["record_json"] = '{"step": 3, "E_total": '
+
+
+def _remove(path):
+    path.unlink()
+
+
+STEP_FAULTS = {
+    "truncated": (_truncate, r"cannot be read as HDF5, truncated or overwritten"),
+    "empty": (_empty, r"is empty \(0 bytes\)"),
+    "junk": (_junk, r"is not an HDF5 file"),
+    "corrupted positions": (_flip_positions, r"checksum mismatch in the positions X"),
+    "broken record": (_break_record, r"record \(attribute record_json\) is not valid JSON"),
+    "missing file": (_remove, r"is missing although later steps exist"),
+}
+
+
+@pytest.mark.parametrize("k, fault", [(k, f) for k in (MIDDLE, LAST) for f in STEP_FAULTS
+                                      if (k, f) != (LAST, "missing file")])  # a shorter run
+def test_a_damaged_step_is_named_and_the_good_steps_read_as_before(folder, reference, fault, k,
+                                                                   caplog):
+    damage, reason = STEP_FAULTS[fault]
+    _, table, positions = reference
+    damage(_step(folder, k))
+    with caplog.at_level(logging.WARNING, logger="shellbuckle.store"):
+        run = Run.open(folder)
+        good = [j for j in range(LAST + 1) if j != k]
+        assert run.steps == good
+    assert list(run.damaged) == [k]
+    assert f"step_{k:06d}.h5" in run.damaged[k]
+    assert re.search(reason, run.damaged[k]), run.damaged[k]
+    assert f"step {k}: steps/step_{k:06d}.h5" in caplog.text  # one warning names it
+    _same_rows(run.table, table[table["step"] != k])
+    for j in good:
+        assert run.positions(j).tobytes() == positions[j].tobytes()
+    with pytest.raises(ValueError, match=rf"step {k} .*is damaged: steps/step_{k:06d}\.h5"):
+        run.positions(k)
+    with pytest.raises(ValueError, match=rf"step {k} .*is damaged"):
+        run.step(k)
+    assert run.step(-1) == good[-1]
+
+
+@pytest.mark.parametrize("fault", [f for f in STEP_FAULTS if f != "missing file"])
+def test_resume_sets_a_damaged_last_step_aside_and_computes_it_again(folder, reference, fault):
+    damage, _ = STEP_FAULTS[fault]
+    _, table, positions = reference
+    damage(_step(folder, LAST))
+    damaged_bytes = _step(folder, LAST).read_bytes()
+    done = resume(folder)
+    assert done.status == "finished" and done.damaged == {}
+    assert done.steps == list(range(LAST + 1))
+    _same_rows(done.table, table, ignore=("wall_s",))  # bit for bit, the wall time aside
+    for k in done.steps:
+        assert done.positions(k).tobytes() == positions[k].tobytes()
+    aside = folder / "steps" / f"step_{LAST:06d}.h5.damaged-1"
+    assert aside.read_bytes() == damaged_bytes  # set aside, never deleted
+    assert json.loads((folder / "run.json").read_text())["sessions"][-1]["set_aside"] == \
+        [aside.name]
+    assert pd.read_csv(folder / "table.csv")["step"].tolist() == list(range(LAST + 1))
+
+
+def test_two_damaged_last_steps_are_both_set_aside(folder, reference):
+    _, table, _ = reference
+    _truncate(_step(folder, LAST - 1))
+    _empty(_step(folder, LAST))
+    _empty(folder / "steps" / f"step_{LAST:06d}.h5.damaged-1")  # an earlier one is kept
+    done = resume(folder)
+    _same_rows(done.table, table, ignore=("wall_s",))
+    assert (folder / "steps" / f"step_{LAST - 1:06d}.h5.damaged-1").exists()
+    assert (folder / "steps" / f"step_{LAST:06d}.h5.damaged-2").exists()
+
+
+@pytest.mark.parametrize("fault", STEP_FAULTS)
+def test_resume_stops_at_a_damaged_middle_step_and_says_where_to_continue(folder, fault):
+    damage, _ = STEP_FAULTS[fault]
+    damage(_step(folder, MIDDLE))
+    before = sorted(p.name for p in (folder / "steps").iterdir())
+    meta_before = (folder / "run.json").read_bytes()
+    with pytest.raises(ValueError) as info:
+        resume(folder)
+    message = str(info.value)
+    assert f"step {MIDDLE} of run {folder} is damaged (steps/step_{MIDDLE:06d}.h5" in message
+    k = MIDDLE - 1
+    assert f"`shellbuckle continue {folder} --step {k} --out NEW_DIR`" in message
+    assert f"`shellbuckle deflate --from {folder} --step {k} --out NEW_DIR`" in message
+    assert sorted(p.name for p in (folder / "steps").iterdir()) == before  # nothing written
+    assert (folder / "run.json").read_bytes() == meta_before
+    assert not RunStore.open(folder).writer_active  # the lock was let go
+
+
+def test_the_cli_refuses_a_damaged_middle_step_with_exit_2(folder):
+    _junk(_step(folder, MIDDLE))
+    code, _, err = _cli(["resume", str(folder), "--quiet", "--no-plot"])
+    assert code == 2 and "Traceback" not in err
+    assert f"--step {MIDDLE - 1}" in err
+
+
+def test_table_cli_prints_the_good_steps_of_a_damaged_run(folder, reference):
+    _flip_positions(_step(folder, MIDDLE))
+    code, out, _ = _cli(["table", str(folder), "--csv"])
+    assert code == 0
+    assert pd.read_csv(io.StringIO(out))["step"].tolist() == [0, 1, 2, 4, 5, 6]
+
+
+def test_a_step_file_without_checksums_reads_unchecked(folder, reference, caplog):
+    # files written before the checksums: no check possible, said in the debug log only
+    with h5py.File(_step(folder, MIDDLE), "a") as f:
+        del f.attrs["sha256"]
+    with caplog.at_level(logging.DEBUG, logger="shellbuckle.store"):
+        run = Run.open(folder)
+        assert run.damaged == {} and run.steps == list(range(LAST + 1))
+        assert run.positions(MIDDLE).tobytes() == reference[2][MIDDLE].tobytes()
+    assert {r.levelno for r in caplog.records if "no checksums" in r.getMessage()} == \
+        {logging.DEBUG}
+
+
+# ----------------------------------------------------------------------------- run.json faults
+
+def test_missing_run_json_fields_are_named_and_the_copy_in_mesh_h5_restores_them(folder,
+                                                                                  reference):
+    _, table, positions = reference
+    meta = json.loads((folder / "run.json").read_text())
+    del meta["params"], meta["status"]
+    meta["mesh"].pop("sha256")
+    (folder / "run.json").write_text(json.dumps(meta))
+    for call in (Run.open, resume):
+        with pytest.raises(ValueError, match=r"lacks the field\(s\) it needs: params \(missing"
+                                             r"\), status \(missing\), mesh.sha256 \(missing\)"
+                                             r".*move run.json aside"):
+            call(folder)
+    code, _, err = _cli(["table", str(folder)])
+    assert code == 2 and "params (missing)" in err
+    (folder / "run.json").rename(folder / "run.json.bad")  # what the message says to do
+    run = Run.open(folder)
+    _same_rows(run.table, table)
+    for k in run.steps:
+        assert run.positions(k).tobytes() == positions[k].tobytes()
+    assert run.params == PARAMS
+    done = resume(folder)
+    assert done.status == "finished"
+    _same_rows(done.table, table)
+
+
+def test_a_missing_run_json_is_rebuilt_from_mesh_h5(folder, reference):
+    _, table, positions = reference
+    original = json.loads((folder / "run.json").read_text())
+    (folder / "run.json").unlink()
+    run = Run.open(folder)  # read: rebuilt in memory
+    assert not (folder / "run.json").exists()
+    assert run.status == "interrupted" and "rebuilt" in run.store.meta["message"]
+    _same_rows(run.table, table)
+    for k in run.steps:
+        assert run.positions(k).tobytes() == positions[k].tobytes()
+    done = resume(folder)  # the last step is the end of the schedule: finished at once
+    assert done.status == "finished"
+    _same_rows(done.table, table)
+    rebuilt = json.loads((folder / "run.json").read_text())
+    for key in ("run_id", "created", "params", "protocol", "mesh", "parent", "extra"):
+        assert rebuilt[key] == original[key]
+
+
+def test_a_run_json_lost_before_the_last_step_resumes_to_the_same_table(folder, reference):
+    _, table, _ = reference
+    (folder / "run.json").unlink()
+    for k in (LAST - 1, LAST):
+        _step(folder, k).unlink()
+    done = resume(folder)
+    assert done.status == "finished"
+    _same_rows(done.table, table, ignore=("wall_s",))
+
+
+def test_a_run_killed_before_run_json_existed_resumes_or_runs_again_in_place(tmp_path,
+                                                                              reference):
+    _, table, _ = reference
+    for how in ("resume", "deflate"):
+        out = tmp_path / how
+        shutil.copytree(reference[0], out)
+        (out / "run.json").unlink()
+        (out / "table.csv").unlink()
+        shutil.rmtree(out / "steps")  # created after mesh.h5, before run.json
+        done = resume(out) if how == "resume" else deflate(icosphere(4), PARAMS, out=out,
+                                                          **OPTIONS)
+        assert done.status == "finished"
+        _same_rows(done.table, table, ignore=("wall_s",))
+
+
+def test_a_lost_run_json_of_an_older_run_says_what_to_do(folder):
+    with h5py.File(folder / "mesh.h5", "a") as f:  # mesh.h5 of a run made before the copy
+        del f.attrs["run_json"]
+    (folder / "run.json").unlink()
+    for call in (Run.open, resume):
+        with pytest.raises(ValueError, match=r"has step files but no run.json.*cannot be "
+                                             r"recovered.*Restore run.json from a backup"):
+            call(folder)
+    with pytest.raises(ValueError, match="cannot be recovered"):
+        deflate(icosphere(4), PARAMS, out=folder, **OPTIONS)
+
+
+def test_a_missing_steps_folder_is_explained_and_an_empty_one_computes_the_run_again(
+        folder, reference):
+    _, table, _ = reference
+    shutil.rmtree(folder / "steps")
+    for call in (Run.open, resume):
+        with pytest.raises(ValueError, match=r"has no steps/ folder: the files of its finished "
+                                             r"steps .* were moved or deleted.*create an empty "
+                                             r"folder"):
+            call(folder)
+    code, _, err = _cli(["table", str(folder)])
+    assert code == 2 and "no steps/ folder" in err
+    (folder / "steps").mkdir()  # what the message says to do
+    done = resume(folder)
+    _same_rows(done.table, table, ignore=("wall_s",))
+
+
+def _cli(argv):
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = cli.main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_a_branch_whose_step_0_is_damaged_is_made_again_from_its_parent(tmp_path):
+    # a branch's step 0 is its parent's step: a resume cannot compute it, the branch can
+    rng = np.random.default_rng(0)
+    X0 = rng.normal(size=(30, 3))
+    faces = rng.integers(0, 30, size=(56, 3))
+    with RunStore.create(tmp_path / "parent", params={"gamma": 1.0}, protocol={"dv": 0.1},
+                         X0=X0, faces=faces) as parent:
+        for k in range(3):
+            parent.append_step(k, (1 - 0.1 * k) * X0, {"E_total": float(k)})
+        parent.branch(tmp_path / "child", 2).close()
+    _junk(_step(tmp_path / "child", 0))
+    with pytest.raises(ValueError, match=r"step 0 of run .*child is damaged; it is the step "
+                                         r"it starts from, step 2 of .*parent.*shellbuckle "
+                                         r"continue .*parent --step 2 --out .*child"):
+        RunStore.resume(tmp_path / "child")
+    with RunStore.open(tmp_path / "parent").branch(tmp_path / "child", 2) as child:
+        assert child.steps == [0] and child.damaged == {}
+        assert child.positions(0).tobytes() == ((1 - 0.2) * X0).tobytes()
+    assert (tmp_path / "child" / "steps" / "step_000000.h5.damaged-1").exists()
