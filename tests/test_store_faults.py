@@ -321,3 +321,15 @@ def test_a_branch_whose_step_0_is_damaged_is_made_again_from_its_parent(tmp_path
         assert child.steps == [0] and child.damaged == {}
         assert child.positions(0).tobytes() == ((1 - 0.2) * X0).tobytes()
     assert (tmp_path / "child" / "steps" / "step_000000.h5.damaged-1").exists()
+
+
+def test_a_sweep_catalogue_row_names_the_damaged_steps(tmp_path, folder):
+    from shellbuckle.store.catalogue import run_row
+
+    shutil.copytree(folder, tmp_path / "sweep" / "g271")
+    _truncate(_step(tmp_path / "sweep" / "g271", MIDDLE))
+    row = run_row(tmp_path / "sweep", "g271", {})
+    assert row["status"] == "finished" and row["steps"] == LAST
+    assert row["message"].startswith("end of the schedule")  # the stop reason still reads
+    assert f"damaged step(s) left out: step {MIDDLE}: steps/step_{MIDDLE:06d}.h5" in \
+        row["message"]

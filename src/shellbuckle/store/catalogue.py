@@ -302,6 +302,11 @@ def run_row(out_dir, name: str, point: dict) -> dict:
             row.update(_parameters(point, meta), status="failed", message=str(exc))
             return row
         row.update(_parameters(point, meta), status=meta["status"], message=meta.get("message"))
+        damaged = store.damaged  # left out of the table: say so where the sweep looks
+        if damaged:
+            note = (f"damaged step(s) left out: "
+                    + "; ".join(f"step {k}: {why}" for k, why in sorted(damaged.items())))
+            row["message"] = f"{row['message']}; {note}" if row["message"] else note
         if last.get("outcome") == "failed" and meta["status"] not in ("finished", "failed"):
             # the worker died (or the task failed outside deflate) after the folder was made
             row.update(status="failed", message=last.get("message"))
