@@ -87,7 +87,7 @@ def test_one_default_gamma_and_one_nu_help():
     for name in ("deflate", "theory", "sweep"):
         gamma, nu = option(parsers[name], "--gamma"), option(parsers[name], "--nu")
         assert f"default {MAIN_JOB_GAMMA:g}" in gamma.help, name
-        assert nu.help.endswith(NU_HELP), name
+        assert NU_HELP in nu.help, name
 
 
 def test_protocol_defaults_are_the_librarys():

@@ -127,7 +127,7 @@ def test_cli_writes_and_refuses_bad_input(tiny_runs, reference, tmp_path, capsys
     assert main(["report", str(tmp_path / "missing"), "--reference", str(ref)]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert main(["report", str(tiny_runs["c"]), "--reference", str(tmp_path / "no.json")]) == 2
-    assert "reference file" in capsys.readouterr().err
+    assert "--reference" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(["report", str(tiny_runs["c"]), "--format", "pdf"])
     assert exc.value.code == 2
