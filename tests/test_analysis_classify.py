@@ -371,3 +371,63 @@ def test_gamma_15163_capsule_becomes_polygonal_then_wrinkled(tmp_path):  # about
     assert len(mid) >= 3 and mid["W"].between(3, 8).all()
     names = [e.name for e in events(run)]
     assert names.index("primary_buckling") < names.index("axisymmetry_loss") < names.index("wrinkles")
+
+
+# ---------------------------------------------------------------------- a bowl's far sheet
+
+def creased_bowl(X, m, alpha, axis, phase, beta):
+    """``wrinkled_bowl`` whose outer side is dented under one fold of the rim: the sphere's
+    cap of half-angle ``beta`` about the direction at the fold's azimuth ``phase + pi/m``,
+    just below the rim (polar angle ``alpha + beta`` from the axis), is inverted, on the
+    outer side only (the vertices the bowl left in place). Its floor comes to within about
+    0.2 R of the bowl's wall across the shell, as the outer side of the deep wrinkled bowls
+    of the runs at gamma >= 15163 does (0.05-0.26 R, docs/analysis.md): a concave patch of
+    the bowl's doubled wall, not a dimple."""
+    from test_analysis_shapes import frame
+
+    Y = wrinkled_bowl(X, m, alpha, axis, phase)
+    outer = np.linalg.norm(Y - X, axis=1) < 1e-12
+    e1, e2, u = frame(axis)
+    phi, theta = phase + np.pi / m, alpha + beta
+    v = np.sin(theta) * (np.cos(phi) * e1 + np.sin(phi) * e2) + np.cos(theta) * u
+    R = np.linalg.norm(X, axis=1).max()
+    assert (Y[~outer] @ v).max() < R * np.cos(beta)  # the cap leaves the bowl alone: no tear
+    return np.where(outer[:, None], inverted_cap(Y, beta, v), Y)
+
+
+@pytest.mark.parametrize("m", [7, 9])
+@pytest.mark.parametrize("beta_deg", [14, 18])
+def test_bowl_whose_outer_side_follows_its_wall_is_one_wrinkled_depression(m, beta_deg):
+    from scipy.spatial import cKDTree
+
+    from shellbuckle.mesh.contact import ContactChecker
+
+    kind = "random"
+    rng = np.random.default_rng(1000 + m)
+    axis, phase, Q = _random_placement(rng)
+    X = creased_bowl(mesh(kind).X, m, np.radians(60), axis, phase, np.radians(beta_deg)) @ Q.T
+    c = _classify(kind, X)
+    assert (c.shape, c.n_dimples, c.corners, c.W) == ("wrinkled", 1, m, m)
+    # the construction does what it claims: the inverted patch is the far sheet (one), within
+    # a fifth of the radius of the bowl's wall, and the surface does not cross itself
+    sheets = c.descriptors.far_sheets
+    assert len(sheets) == 1
+    bowl = c.descriptors.dents[0].vertices
+    gap = cKDTree(X[bowl]).query(X[sheets[0].vertices])[0]
+    assert gap.min() < 0.25
+    assert ContactChecker(mesh(kind).topology).intersecting_pairs(X)[1] == 0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("alpha_deg", [50, 58])
+def test_two_dimples_whose_floors_nearly_touch_stay_two_dimples(kind, alpha_deg):
+    # a biconcave disc: two opposite inverted caps, floors 2 (2 cos alpha - 1) R apart (0.12 R
+    # at 58 deg): across the shell from each other, but most of each dimple is far from the
+    # other, so neither is the far sheet of the other
+    rng = np.random.default_rng(alpha_deg)
+    u = rng.normal(size=3)
+    u /= np.linalg.norm(u)
+    X = dimpled(mesh(kind).X, [u, -u], np.radians(alpha_deg))
+    c = _classify(kind, X)
+    assert (c.shape, c.n_dimples, c.corners, c.W) == ("dimples", 2, 0, 0)
+    assert not c.descriptors.far_sheets

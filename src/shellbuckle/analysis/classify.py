@@ -178,7 +178,8 @@ def classify(X, faces) -> Classification:
 #: analysis stored by another version is stale and computed again
 #: (:func:`is_current`). 1: stored without the column; 2: rim counts by the dip of each arc
 #: inside its chord, counts below the mesh's resolution refused (``count_resolved``).
-ANALYSIS_VERSION = 2
+#: 3: the far sheet of a dent's wall is not a dimple (:meth:`.descriptors.ShapeAnalyzer.far_sheet`).
+ANALYSIS_VERSION = 3
 
 
 def is_current(stored: dict | None) -> bool:

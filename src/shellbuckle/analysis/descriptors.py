@@ -17,7 +17,12 @@ components on the edge graph of the mesh. A component is a *dent* when its area 
 vertex areas ``A_i = 1/3 sum_{f at i} area_f``) is at least ``pi (MIN_DENT_RADIUS R_area)^2``;
 smaller components are curvature noise. Components lying mostly inside a larger dent's
 depression (inside and below its crest, :mod:`.wrinkles`) belong to it, so a depression cut
-into pieces by folds counts once. ``n_dimples`` is the number of dents.
+into pieces by folds counts once. A component at least half of whose area lies within
+``WALL_GAP R_area`` of a larger dent's surface, across the shell's interior (the two surfaces
+facing away from each other), is the far sheet of that dent's wall and
+not a dimple of its own: where a deep bowl's wall runs close to the outer side of the shell
+(a fold of the rim pressed against it, near self-contact), the outer side follows it and is
+concave there (:meth:`ShapeAnalyzer.dents`). ``n_dimples`` is the number of dents.
 
 Dent frame
 ----------
@@ -62,6 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from ..energies.bending import Bending
 from ..mesh.topology import Topology
@@ -74,6 +80,14 @@ from . import wrinkles
 #: below 0.07 R; after buckling, the runs analysed so far have no inverted component besides
 #: the dent. Inverted caps are detected from a half-angle of 12 deg (3594 vertices).
 MIN_DENT_RADIUS = 0.1
+#: A component of ``H_smooth < 0`` is the far sheet of a larger dent's wall (not a dimple) when at
+#: least half of its area is within WALL_GAP R_area of that dent's vertices across the shell's
+#: interior (:meth:`ShapeAnalyzer.far_sheet`). Calibration (docs/analysis.md): on the
+#: 3594-vertex runs at gamma >= 15163 the concave patches of the outer side beside a deep
+#: wrinkled bowl have half their area within 0.27 R of its wall (within 0.15 R at
+#: self-contact); two opposite dimples whose floors touch (a biconcave disc) have half their
+#: area more than 0.42 R apart.
+WALL_GAP = 0.3
 #: Before the sign of H is taken, H is smoothed (:meth:`Geometry.smooth`) over
 #: max(H_SMOOTHING_LENGTH R_area, H_SMOOTHING_EDGES h), h the mean edge length: the discrete
 #: mean curvature of a rough mesh is noisy at the vertex scale.
@@ -156,7 +170,9 @@ class Descriptors:
 
     ``dents`` are sorted by decreasing area; ``rim`` is the rim of the largest dent
     (:class:`shellbuckle.analysis.wrinkles.Rim`) when exactly that dent could be framed, else
-    ``None``. Lengths in the units of ``X``.
+    ``None``; ``far_sheets``: the components of dent size found to be the far sheet of a dent's
+    wall (:meth:`ShapeAnalyzer.far_sheet`), not counted as dimples. Lengths in the units of
+    ``X``.
     """
 
     geometry: Geometry = field(repr=False)
@@ -167,6 +183,7 @@ class Descriptors:
     dent_depth: float
     dent_sagitta: float
     contact_distance: float
+    far_sheets: tuple = ()
 
     @property
     def n_dimples(self) -> int:
@@ -184,6 +201,7 @@ class Descriptors:
             "H_min": float(g.H.min()), "H_max": float(g.H.max()),
             "n_dimples": self.n_dimples,
             "dimple_areas": [float(d.area) for d in self.dents],
+            "far_sheet_areas": [float(d.area) for d in self.far_sheets],
             "dent_area": float(main.area) if main else math.nan,
             "dent_axis": [float(v) for v in rim.axis] if rim else (
                 [float(v) for v in main.axis] if main else None),
@@ -276,20 +294,25 @@ class ShapeAnalyzer:
         order = np.argsort(-areas, kind="stable")
         return [_dent(geom, groups[c]) for c in order]
 
-    def dents(self, geom: Geometry, min_radius: float = MIN_DENT_RADIUS):
+    def dents(self, geom: Geometry, min_radius: float = MIN_DENT_RADIUS,
+              with_sheets: bool = False):
         """Dents of a conformation, largest first, and the rim of the largest (or ``None``).
 
         Each component of ``H_smooth < 0`` with an area of at least ``pi (min_radius R_area)^2``
-        seeds a dent; the components (of any size) lying mostly (by area) in a larger dent's
-        depression (inside and below its crest, facing out of it: :meth:`wrinkles.Rim.encloses`)
-        belong to it, so a depression cut into pieces by folds of positive curvature counts
-        once. Returns ``(dents, rim)``.
+        seeds a dent, unless it is the far sheet of a larger dent's wall (:meth:`far_sheet`);
+        the components (of any size) lying mostly (by area) in a larger dent's depression
+        (inside and below its crest, facing out of it: :meth:`wrinkles.Rim.encloses`) belong
+        to it, so a depression cut into pieces by folds of positive curvature counts once.
+        Returns ``(dents, rim)``, and the far sheets as a third item with ``with_sheets``.
         """
         remaining = self.inverted_components(geom)
         threshold = math.pi * (min_radius * geom.R_area) ** 2
-        dents, main_rim = [], None
+        dents, sheets, main_rim, trees = [], [], None, {}
         while remaining and remaining[0].area >= threshold:
             seed = remaining.pop(0)
+            if any(self.far_sheet(geom, seed, d, trees) for d in dents):
+                sheets.append(seed)
+                continue
             rim = wrinkles.find_rim(geom, self.topology, seed, self.components)
             if rim is not None and remaining:
                 inside = [c for c in remaining if geom.vertex_area[c.vertices][rim.encloses(
@@ -301,7 +324,31 @@ class ShapeAnalyzer:
             if not dents:
                 main_rim = rim
             dents.append(seed)
+        if with_sheets:
+            return tuple(dents), main_rim, tuple(sheets)
         return tuple(dents), main_rim
+
+    @staticmethod
+    def far_sheet(geom: Geometry, part: Dent, dent: Dent, trees: dict | None = None) -> bool:
+        """Whether the inverted region ``part`` is the far sheet of ``dent``'s wall: at least
+        half of its area within ``WALL_GAP R_area`` of a vertex of ``dent`` across the shell's
+        interior, i.e. with the two outward normals opposed (``n_i . n_j < 0``, ``j`` the
+        nearest vertex of ``dent`` to vertex ``i`` of ``part``; which point is behind which is
+        not tested: near contact the gap is below the edge length and its direction is noise).
+        Where a deep bowl's wall comes
+        close to the outer side of the shell the outer side follows it and is concave there,
+        a concavity of the bowl's doubled wall, not a depression of the body. ``trees``: a
+        cache of k-d trees keyed by ``id(dent)``."""
+        trees = {} if trees is None else trees
+        if id(dent) not in trees:
+            trees[id(dent)] = cKDTree(geom.X[dent.vertices])
+        X, n = geom.X, geom.vertex_normal
+        i = part.vertices
+        dist, k = trees[id(dent)].query(X[i], distance_upper_bound=WALL_GAP * geom.R_area)
+        close = np.isfinite(dist)
+        i, j = i[close], dent.vertices[k[close]]
+        across = (n[i] * n[j]).sum(axis=1) < 0
+        return bool(geom.vertex_area[i[across]].sum() >= 0.5 * part.area)
 
     # ------------------------------------------------------------------ all descriptors
 
@@ -324,11 +371,11 @@ class ShapeAnalyzer:
         l1, l2, l3 = gyration
         asphericity = float(((l1 - l2) ** 2 + (l2 - l3) ** 2 + (l3 - l1) ** 2)
                             / (2.0 * (l1 + l2 + l3) ** 2))
-        dents, rim = self.dents(geom)
+        dents, rim, sheets = self.dents(geom, with_sheets=True)
         depth, sagitta = _depths(geom, rim) if rim is not None else (math.nan, math.nan)
         return Descriptors(geometry=geom, asphericity=asphericity, gyration=gyration,
                            dents=dents, rim=rim, dent_depth=depth, dent_sagitta=sagitta,
-                           contact_distance=self.contact_distance(geom.X))
+                           contact_distance=self.contact_distance(geom.X), far_sheets=sheets)
 
 
 def _dent(geom: Geometry, idx: np.ndarray) -> Dent:
