@@ -37,6 +37,7 @@ import math
 import numbers
 import os
 import socket
+import sys
 import threading
 import time
 import tomllib
@@ -531,8 +532,22 @@ def _client(scheduler, workers):
         # unmapped again, and a deflation step spends about a third of its time in page faults
         # (10 times as many as in a plain process). The local workers keep glibc's defaults.
         with dask.config.set({f"{NANNY_ENV}.{k}": None for k in WORKER_ENV_UNSET}):
-            cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
-                                   processes=True, dashboard_address=None, env=dict(WORKER_ENV))
+            try:
+                cluster = LocalCluster(n_workers=workers or default_workers(),
+                                       threads_per_worker=1, processes=True,
+                                       dashboard_address=None, env=dict(WORKER_ENV))
+            except RuntimeError as exc:
+                script = getattr(sys.modules.get("__main__"), "__file__", None)
+                if script is not None and script.startswith("<"):  # e.g. "<stdin>"
+                    raise RuntimeError(
+                        "the local Dask cluster could not start its worker processes: they "
+                        "import the calling script, which Python read from standard input; "
+                        "save it to a file and put the sweep under "
+                        "`if __name__ == \"__main__\":`") from exc
+                raise RuntimeError(
+                    f"the local Dask cluster could not start its worker processes ({exc}); "
+                    "in a script, call the sweep under `if __name__ == \"__main__\":`, since "
+                    "the workers import the script") from exc
         client = Client(cluster)
         return client, [client, cluster]
     if isinstance(scheduler, Client):
