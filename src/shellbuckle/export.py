@@ -27,6 +27,18 @@ from a Surface Evolver file) and the body volume of the exported step as its tar
 Its ``linear_elastic`` energy equals the table's ``E_stretch``; its bending energy equals the
 table's ``E_bend`` for a run made with ``bending="evolver"`` (a Jülicher run reports a
 different discretization of the same integral).
+
+A single-step ``vtu`` file also carries field data (one value each, :func:`field_data`): the
+run's ``gamma``, ``nu``, ``kappa``, ``kappa_helfrich``, ``bending_factor`` (the energy
+convention: the bending energy is the helfrich one with ``bending_factor * kappa``), ``A``,
+``R``, ``c0`` and ``p_c`` (classical buckling pressure), and the step's ``step``,
+``dV_over_V``, ``pressure`` (``kappa/R^3``), ``pressure_over_p_c``, ``E_over_kappa``,
+``E_total``, ``E_bend`` and ``E_stretch`` (``kappa``), as in the run's table.
+
+The whole run as one time series (:func:`export_series`, format ``xdmf``): an XDMF 3 file
+(XML) with its heavy data in an HDF5 file beside it (same name, ``.h5``), which ParaView opens
+as one time-dependent data set and :class:`meshio.xdmf.TimeSeriesReader` reads. See
+:func:`export_series` for the layout.
 """
 
 from __future__ import annotations
@@ -39,10 +51,14 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FORMATS", "RunFields", "export_step", "resolve_step", "default_export_path"]
+__all__ = ["FORMATS", "SERIES_FORMATS", "RunFields", "export_step", "export_series",
+           "field_data", "run_metadata", "step_metadata", "resolve_step", "default_export_path",
+           "default_series_path"]
 
 #: format name -> file extension
 FORMATS = {"vtk": ".vtk", "vtu": ".vtu", "ply": ".ply", "obj": ".obj", "stl": ".stl", "fe": ".fe"}
+#: format name -> file extension, of the formats holding every step of a run in one file
+SERIES_FORMATS = {"xdmf": ".xdmf"}
 _POINT_DATA = {"vtk", "vtu", "ply"}
 _CELL_DATA = {"vtk", "vtu"}
 
@@ -181,8 +197,79 @@ def export_step(run, step: int, path, fmt: str | None = None) -> Path:
     if fmt in _CELL_DATA:
         cell_data["stretching_energy_density"] = fields.stretching_density(X)
     write_mesh(path, mesh, point_data=point_data, cell_data=cell_data)
+    if fmt == "vtu":
+        _add_vtu_field_data(path, field_data(run, step))
     log.info("step %d of %s written to %s", step, run.path, path)
     return path
+
+
+# ------------------------------------------------------------------------------ metadata
+#: The step values every export carries, columns of the run's table.
+STEP_COLUMNS = ("step", "dV_over_V", "pressure", "E_over_kappa", "E_total", "E_bend",
+                "E_stretch")
+
+
+def run_metadata(run) -> dict:
+    """The run's parameters as plain values: ``gamma``, ``nu``, ``kappa``, ``energy_convention``
+    (name), ``bending_factor`` ``f`` and ``kappa_helfrich = f kappa`` (the bending energy is
+    ``1/2 kappa_helfrich (c1 + c2 - c0)^2``), ``A`` (2D Young modulus), ``R``, ``c0`` (the
+    protocol's, ``2/R`` when it gave none) and ``p_c``, the classical buckling pressure
+    :func:`shellbuckle.theory.classical_threshold` (``kappa/R^3``)."""
+    from .theory import classical_threshold
+
+    run = _open(run)
+    params = run.params
+    c0 = run.protocol.c0
+    return {"gamma": float(params.gamma), "nu": float(params.nu), "kappa": float(params.kappa),
+            "energy_convention": params.energy_convention,
+            "bending_factor": float(params.bending_factor),
+            "kappa_helfrich": float(params.kappa_helfrich), "A": float(params.A),
+            "R": float(params.R), "c0": 2.0 / params.R if c0 is None else float(c0),
+            "p_c": float(classical_threshold(params).pressure)}
+
+
+def step_metadata(run, step: int, table=None, p_c: float | None = None) -> dict:
+    """The values of stored step ``step`` in the run's table (:data:`STEP_COLUMNS`, and
+    ``gamma``/``c0`` where the table has them: a parameter path), plus ``pressure_over_p_c``.
+    ``table``, ``p_c``: the run's table and classical pressure, when the caller has them."""
+    run = _open(run)
+    table = run.table if table is None else table
+    rows = table[table["step"] == step]
+    if rows.empty:
+        raise ValueError(f"step {step} is not in the table of run {str(run.path)!r}")
+    row = rows.iloc[0]
+    out = {c: row[c] for c in STEP_COLUMNS + ("gamma", "c0") if c in table.columns}
+    out = {c: int(v) if c == "step" else float(v) for c, v in out.items()}
+    p_c = run_metadata(run)["p_c"] if p_c is None else p_c
+    out["pressure_over_p_c"] = out["pressure"] / p_c
+    return out
+
+
+def field_data(run, step: int, table=None) -> dict:
+    """The numeric values a single-step export carries as field data: :func:`run_metadata`
+    without the convention's name (``bending_factor`` says it) and :func:`step_metadata`."""
+    meta = run_metadata(run)
+    meta.pop("energy_convention")
+    return meta | step_metadata(run, step, table, meta["p_c"])
+
+
+def _add_vtu_field_data(path: Path, values: dict) -> None:
+    """Insert ``<FieldData>`` (one ascii Float64 or Int64 value per name) into a VTU file
+    written by meshio, whose writer has no field data."""
+    arrays = []
+    for name, value in values.items():
+        kind = "Int64" if isinstance(value, (int, np.integer)) else "Float64"
+        text = str(int(value)) if kind == "Int64" else repr(float(value))
+        arrays.append(f'<DataArray type="{kind}" Name="{name}" NumberOfTuples="1" '
+                      f'format="ascii">{text}</DataArray>')
+    block = ("<FieldData>\n" + "\n".join(arrays) + "\n</FieldData>\n").encode()
+    data = path.read_bytes()
+    tag = b"<UnstructuredGrid>"
+    at = data.find(tag)
+    if at < 0:
+        raise ValueError(f"{str(path)!r} is not a VTU file as meshio writes it")
+    at += len(tag)
+    path.write_bytes(data[:at] + b"\n" + block + data[at:])
 
 
 def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path) -> Path:
@@ -202,4 +289,118 @@ def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path
     write_evolver(path, mesh, kappa=params.kappa_helfrich, c0=fields.c0, A=params.A, nu=params.nu,
                   form_factors=fields.form_factors, volume=volume, title=title)
     log.info("step %d of %s written to %s", step, run.path, path)
+    return path
+
+
+# ------------------------------------------------------------------------------ time series
+def default_series_path(run, fmt: str = "xdmf") -> Path:
+    """``<run folder name>.<ext>`` in the current directory."""
+    return Path(f"{Path(run.path).name}{SERIES_FORMATS[fmt]}")
+
+
+def _info(parent, name: str, value) -> None:
+    import xml.etree.ElementTree as ET
+
+    text = repr(value) if isinstance(value, float) else str(value)
+    ET.SubElement(parent, "Information", Name=name, Value=text)
+
+
+def _data_item(parent, h5_name: str, dataset, shape, number_type: str = "Float") -> None:
+    import xml.etree.ElementTree as ET
+
+    item = ET.SubElement(parent, "DataItem", Dimensions=" ".join(str(n) for n in shape),
+                         NumberType=number_type, Precision="8", Format="HDF")
+    item.text = f"{h5_name}:{dataset}"
+
+
+def export_series(run, path, fmt: str | None = None, steps=None) -> Path:
+    """Write the stored steps of ``run`` (a Run or a run folder; ``steps``: a subset, default
+    all) as one time series: an XDMF 3 file ``path`` and its HDF5 file ``path.with_suffix(".h5")``;
+    return the XDMF path. ``fmt`` is ``"xdmf"`` or None (taken from the extension; a path
+    without one gets ``.xdmf``).
+
+    The time of each step is its **step number** (not dV/V, which stands still along a path
+    in gamma or c0 and decreases on a re-inflation, while an XDMF time must increase). Layout:
+
+    - HDF5: ``/mesh/faces (F, 3)`` int64 and ``/mesh/X0 (V, 3)`` (the initial sphere); for
+      step ``k``, group ``/steps/<k, 6 digits>`` with ``X (V, 3)`` (positions, float64, the
+      stored values exactly), ``displacement (V, 3)``, ``H (V,)``,
+      ``bending_energy_density (V,)`` and ``stretching_energy_density (F,)`` (the fields of
+      the VTU export, module docstring), and the step's values (:func:`step_metadata`) as
+      attributes; the run's values (:func:`run_metadata`) as attributes of the root.
+    - XDMF: a temporal collection of one uniform grid per step, each with its ``Time``, the
+      shared triangles, the step's ``X`` as its geometry (ParaView shows the shape moving) and
+      as a vector point field ``X`` (which meshio's reader returns, as it reads one geometry),
+      the fields as ``Attribute`` elements, and the step's values as ``Information`` elements
+      (``Name``, ``Value``); the run's values as ``Information`` elements of the ``Domain``.
+    """
+    import xml.etree.ElementTree as ET
+
+    import h5py
+
+    run = _open(run)
+    path = Path(path)
+    fmt = "xdmf" if fmt is None else str(fmt).lower().lstrip(".")
+    if fmt not in SERIES_FORMATS:
+        raise ValueError(f"format {fmt!r} is not a time-series format; allowed: "
+                         f"{', '.join(SERIES_FORMATS)}")
+    if path.suffix == "":
+        path = path.with_suffix(SERIES_FORMATS[fmt])
+    elif path.suffix.lower() != SERIES_FORMATS[fmt]:
+        raise ValueError(f"the extension {path.suffix!r} of {str(path)!r} does not match the "
+                         f"format {fmt!r} (expected {SERIES_FORMATS[fmt]!r})")
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
+    steps = run.steps if steps is None else [run.step(k) for k in steps]
+    if not steps:
+        raise ValueError(f"run {str(run.path)!r} has no finished step to export")
+    h5_path = path.with_suffix(".h5")
+    fields = RunFields.of(run)
+    faces = np.asarray(run.faces, dtype=np.int64)
+    table = run.table
+    meta = run_metadata(run)
+    n_v, n_f = len(fields.X0), len(faces)
+
+    root = ET.Element("Xdmf", Version="3.0")
+    domain = ET.SubElement(root, "Domain")
+    for name, value in meta.items():
+        _info(domain, name, value)
+    _info(domain, "run", Path(run.path).name)
+    _info(domain, "time", "step number")
+    series = ET.SubElement(domain, "Grid", Name=Path(run.path).name, GridType="Collection",
+                           CollectionType="Temporal")
+    with h5py.File(h5_path, "w") as h5:
+        h5.attrs.update(meta)
+        h5.attrs["run"] = str(run.path)
+        h5["mesh/faces"] = faces
+        h5["mesh/X0"] = fields.X0
+        for step in steps:
+            X = np.asarray(run.positions(step), dtype=np.float64)
+            H = fields.mean_curvature(X)
+            group = h5.create_group(f"steps/{step:06d}")
+            data = {"X": X, "displacement": fields.displacement(X), "H": H,
+                    "bending_energy_density": fields.bending_density(X, H),
+                    "stretching_energy_density": fields.stretching_density(X)}
+            for name, array in data.items():
+                group[name] = array
+            values = step_metadata(run, step, table, meta["p_c"])
+            group.attrs.update(values)
+            grid = ET.SubElement(series, "Grid", Name=f"step {step}", GridType="Uniform")
+            ET.SubElement(grid, "Time", Value=str(step))
+            for name, value in values.items():
+                _info(grid, name, value)
+            topology = ET.SubElement(grid, "Topology", TopologyType="Triangle",
+                                     NumberOfElements=str(n_f))
+            _data_item(topology, h5_path.name, "/mesh/faces", (n_f, 3), "Int")
+            geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+            _data_item(geometry, h5_path.name, f"{group.name}/X", (n_v, 3))
+            for name, array in data.items():
+                center = "Cell" if name == "stretching_energy_density" else "Node"
+                attribute = ET.SubElement(grid, "Attribute", Name=name, Center=center,
+                                          AttributeType="Vector" if array.ndim == 2
+                                          else "Scalar")
+                _data_item(attribute, h5_path.name, f"{group.name}/{name}", array.shape)
+    ET.indent(root)
+    ET.ElementTree(root).write(path, xml_declaration=True, encoding="utf-8")
+    log.info("%d steps of %s written to %s and %s", len(steps), run.path, path, h5_path)
     return path

@@ -1,0 +1,118 @@
+"""A run as one piece: the XDMF time series and the VTU field data (shellbuckle.export), the
+animation (shellbuckle animate), the pressure-volume figure (shellbuckle.plots.pv) and the Run's
+convenience methods. Tiny runs: icosphere(3), 92 vertices, a few steps."""
+
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from shellbuckle import ShellParameters
+from shellbuckle.cli import main
+from shellbuckle.export import export_series, export_step, run_metadata
+from shellbuckle.mesh import icosphere
+from shellbuckle.run import continue_from, deflate
+from shellbuckle.theory import classical_threshold
+
+GAMMA = 271.0
+NU = 1.0 / 3.0
+
+
+@pytest.fixture(scope="module")
+def family(tmp_path_factory):
+    """A deflation to dV/V = 0.08 and a re-inflation branch from its last step back to 0.02."""
+    base = tmp_path_factory.mktemp("family")
+    run = deflate(icosphere(3), ShellParameters.from_gamma(GAMMA, nu=NU),
+                  schedule=[0.02, 0.04, 0.06, 0.08], out=base / "down")
+    back = continue_from(run, -1, base / "up", schedule=[0.05, 0.02])
+    return run, back
+
+
+@pytest.fixture(scope="module")
+def run(family):
+    return family[0]
+
+
+# ------------------------------------------------------------------------------ XDMF
+def _informations(element) -> dict:
+    return {i.get("Name"): i.get("Value") for i in element.findall("Information")}
+
+
+def test_xdmf_reads_back_every_step_exactly_with_meshio(run, tmp_path):
+    path = export_series(run, tmp_path / "series.xdmf")
+    assert path.is_file() and path.with_suffix(".h5").is_file()
+    table = run.table
+    with meshio.xdmf.TimeSeriesReader(path) as reader:
+        points, cells = reader.read_points_cells()
+        assert reader.num_steps == len(run.steps)
+        np.testing.assert_array_equal(points, run.positions(run.steps[0]))
+        np.testing.assert_array_equal(cells[0].data, run.faces)
+        for k, step in enumerate(run.steps):
+            t, point_data, cell_data = reader.read_data(k)
+            assert t == step  # the time is the step number
+            X = run.positions(step)
+            np.testing.assert_array_equal(point_data["X"], X)
+            np.testing.assert_array_equal(point_data["displacement"], X - run.positions(0))
+            assert point_data["H"].shape == (len(X),)
+            assert cell_data["stretching_energy_density"][0].shape == (len(run.faces),)
+    # the per-step values are the table's, exactly (repr of a float round-trips)
+    grids = ET.parse(path).getroot().find("Domain/Grid").findall("Grid")
+    assert len(grids) == len(run.steps)
+    for grid, step in zip(grids, run.steps):
+        info = _informations(grid)
+        row = table[table["step"] == step].iloc[0]
+        assert int(info["step"]) == step
+        for column in ("dV_over_V", "pressure", "E_over_kappa", "E_bend", "E_stretch"):
+            assert float(info[column]) == row[column]
+        # ParaView moves the geometry: each grid's Geometry is its own step's positions
+        assert grid.find("Geometry/DataItem").text.endswith(f"/steps/{step:06d}/X")
+
+
+def test_xdmf_carries_the_run_parameters(run, tmp_path):
+    path = export_series(run, tmp_path / "series")  # the extension is added
+    assert path.suffix == ".xdmf"
+    info = _informations(ET.parse(path).getroot().find("Domain"))
+    params = run.params
+    assert float(info["gamma"]) == params.gamma and float(info["nu"]) == params.nu
+    assert info["energy_convention"] == params.energy_convention
+    assert float(info["p_c"]) == classical_threshold(params).pressure
+    import h5py
+
+    with h5py.File(path.with_suffix(".h5")) as h5:
+        assert h5.attrs["gamma"] == params.gamma
+        assert h5.attrs["energy_convention"] == params.energy_convention
+        last = run.steps[-1]
+        assert h5[f"steps/{last:06d}"].attrs["dV_over_V"] == run.table["dV_over_V"].iloc[-1]
+
+
+def test_vtu_of_one_step_carries_field_data(run, tmp_path):
+    step = run.steps[-1]
+    mesh = meshio.read(export_step(run, step, tmp_path / "last.vtu"))
+    row = run.table.iloc[-1]
+    assert mesh.field_data["step"][0] == step
+    for column in ("dV_over_V", "pressure", "E_over_kappa"):
+        assert mesh.field_data[column][0] == row[column]
+    assert mesh.field_data["gamma"][0] == GAMMA and mesh.field_data["nu"][0] == NU
+    assert mesh.field_data["bending_factor"][0] == run.params.bending_factor
+    assert mesh.field_data["pressure_over_p_c"][0] == pytest.approx(
+        row["pressure"] / run_metadata(run)["p_c"], rel=1e-15)
+
+
+def test_cli_export_xdmf(run, tmp_path, capsys):
+    out = tmp_path / "cli.xdmf"
+    assert main(["export", str(run.path), "--format", "xdmf", "--out", str(out)]) == 0
+    assert out.is_file() and out.with_suffix(".h5").is_file()
+    assert f"{len(run.steps)} steps" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--format", "xdmf", "--step", "1"], "--step 1: not used with --format xdmf"),
+    (["--format", "vtu"], "--step is required"),
+    (["--format", "xdmf", "--out", "{tmp}/x.vtu"], "--out"),
+])
+def test_cli_export_xdmf_refuses(run, tmp_path, capsys, argv, fragment):
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(["export", str(run.path)] + argv) == 2
+    assert fragment in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
