@@ -116,3 +116,54 @@ def test_cli_export_xdmf_refuses(run, tmp_path, capsys, argv, fragment):
     assert main(["export", str(run.path)] + argv) == 2
     assert fragment in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+# ------------------------------------------------------------------------------ animation
+def _frames(path) -> int:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return image.n_frames
+
+
+def test_gif_has_one_frame_per_stored_step(run, tmp_path, capsys):
+    out = tmp_path / "run.gif"
+    assert main(["animate", str(run.path), "--out", str(out), "--fps", "8", "--dpi", "50"]) == 0
+    assert _frames(out) == len(run.steps)
+    assert f"({len(run.steps)} frames, 8 per second)" in capsys.readouterr().out
+
+
+def test_gif_of_every_other_step_keeps_the_last(run, tmp_path):
+    from shellbuckle.plots.animation import animate_run, frame_steps
+
+    shown = frame_steps(run.steps, 2)
+    assert shown[0] == run.steps[0] and shown[-1] == run.steps[-1]
+    assert shown == sorted(set(run.steps[::2]) | {run.steps[-1]})
+    path = animate_run(run, tmp_path / "every2.gif", every=2, dpi=50)
+    assert _frames(path) == len(shown)
+    assert _frames(animate_run(run, tmp_path / "two.gif", steps=[0, -1], dpi=50)) == 2
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--fps", "0"], "--fps 0: allowed: an integer in [1, 60]"),
+    (["--fps", "61"], "--fps 61: allowed: an integer in [1, 60]"),
+    (["--fps", "2.5"], "--fps 2.5: not an integer"),
+    (["--out", "{tmp}/a.avi"], "--out"),
+    (["--out", "{tmp}/no/a.gif"], "does not exist"),
+    (["--every", "0"], "--every 0"),
+])
+def test_animate_refuses_bad_input_before_any_work(run, tmp_path, capsys, argv, fragment):
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(["animate", str(run.path)] + argv) == 2
+    assert fragment in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_mp4_without_ffmpeg_exits_2_suggesting_gif(run, tmp_path, capsys, monkeypatch):
+    import shellbuckle.plots.animation as animation
+
+    monkeypatch.setattr(animation, "mp4_available", lambda: False)
+    assert main(["animate", str(run.path), "--out", str(tmp_path / "a.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "ffmpeg" in err and ".gif" in err
+    assert not list(tmp_path.iterdir())
