@@ -167,3 +167,45 @@ def test_mp4_without_ffmpeg_exits_2_suggesting_gif(run, tmp_path, capsys, monkey
     err = capsys.readouterr().err
     assert "ffmpeg" in err and ".gif" in err
     assert not list(tmp_path.iterdir())
+
+
+# ------------------------------------------------------------------------------ p-V, Run methods
+def test_family_finds_the_branch_and_pv_draws_both_paths(family, tmp_path):
+    from shellbuckle.plots.pv import family as find_family
+
+    run, back = family
+    members = find_family(run)
+    assert [m.path for m in members] == [run.path, back.path]
+    assert [m.path for m in find_family(back)] == [back.path]  # a branch's family: itself
+    fig = run.pv(tmp_path / "pv.png")
+    assert (tmp_path / "pv.png").stat().st_size > 0
+    ax = fig.axes[0]
+    p_c = classical_threshold(run.params).pressure
+    lines = [line for line in ax.lines if line.get_marker() == "o"]
+    assert len(lines) == 2
+    for line, member in zip(lines, members):
+        np.testing.assert_array_equal(line.get_xdata(), member.table["dV_over_V"])
+        np.testing.assert_allclose(line.get_ydata(), member.table["pressure"] / p_c, rtol=1e-15)
+    assert "p/p_c" in ax.get_ylabel()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any("deflation" in t for t in labels) and any("re-inflation" in t for t in labels)
+    # the arrows point the way each path goes: right on the deflation, left on the way back
+    arrows = [a for a in ax.texts if getattr(a, "arrow_patch", None) is not None]
+    signs = {np.sign(a.xy[0] - a.xyann[0]) for a in arrows}
+    assert signs == {1.0, -1.0}
+    assert len(run.pv(branches=False).axes[0].get_legend().get_texts()) == 2  # run + theory
+
+
+def test_run_plot_is_the_deflate_figure_and_its_view_axis_is_the_classifiers(run, tmp_path):
+    from shellbuckle.analysis.classify import classify
+    from shellbuckle.plots.run import view_axis
+
+    run.plot(tmp_path / "run.png")
+    assert (tmp_path / "run.png").stat().st_size > 0
+    for step in run.steps:
+        X = run.positions(step)
+        expected = classify(X, run.faces).dent_axis
+        got = view_axis(X, run.faces)
+        assert (got is None) == (expected is None)
+        if expected is not None:
+            np.testing.assert_array_equal(got, np.asarray(expected))

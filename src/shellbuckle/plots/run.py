@@ -72,10 +72,14 @@ def _rotation_to_z(axis):
 def view_axis(X, faces):
     """The direction to look from at a conformation: out of its dent (the classifier's
     ``dent_axis``), or None without a dent. In a deep bowl the negative-curvature vertices lie
-    past the centre, so their mean position would look at the back of the shell."""
-    from ..analysis.classify import classify
+    past the centre, so their mean position would look at the back of the shell. Computed from
+    the descriptors (the rim's axis, else the largest dent's), as the classifier does, without
+    importing it: the classifier opens runs, and :meth:`shellbuckle.run.Run.plot` draws this."""
+    from ..analysis.descriptors import ShapeAnalyzer
 
-    axis = classify(X, faces).dent_axis
+    X = np.asarray(X, dtype=np.float64)
+    d = ShapeAnalyzer(faces, n_vertices=len(X)).describe(X)
+    axis = d.rim.axis if d.rim is not None else (d.dents[0].axis if d.dents else None)
     return None if axis is None else np.asarray(axis, float)
 
 

@@ -122,6 +122,28 @@ class Run:
     def mesh(self, k: int = -1) -> Mesh:
         return Mesh.from_arrays(self.positions(k), self.store.faces)
 
+    # ---------------------------------------------------------------- figures
+    # imported inside the methods: the figures load matplotlib, and the modules they use do
+    # not import this one (tests/test_import_graph.py)
+
+    def plot(self, path=None, step: int = -1):
+        """The run figure ``shellbuckle deflate`` draws at the end (E/kappa and p/p_c against
+        dV/V with the theory, the conformation of ``step`` in 3D):
+        :func:`shellbuckle.plots.run.plot_deflation`. Saved to ``path`` when given (PNG, or
+        PDF by the suffix); returns the matplotlib Figure."""
+        from ..plots.run import plot_deflation
+
+        return plot_deflation(self, path=path, step=step)
+
+    def pv(self, path=None, branches: bool = True):
+        """p/p_c against dV/V of this run and, with ``branches``, of the runs started from it
+        beside it (re-inflations, other paths), arrows along each path
+        (:func:`shellbuckle.plots.pv.plot_pv`, :func:`~shellbuckle.plots.pv.family`). Saved to
+        ``path`` when given; returns the matplotlib Figure."""
+        from ..plots.pv import family, plot_pv
+
+        return plot_pv(family(self) if branches else [self], path)
+
     @property
     def status(self) -> str:
         return self.store.status

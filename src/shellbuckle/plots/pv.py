@@ -1,0 +1,125 @@
+"""The pressure-volume figure of a run and its branches: p/p_c against dV/V.
+
+A run's branches are the runs started from one of its steps by ``shellbuckle continue`` or
+``shellbuckle deflate --from`` (:func:`shellbuckle.run.continue_from`), whose ``run.json``
+names the parent folder (``parent.path``); :func:`family` finds them, and their own branches,
+among the folders beside the run. Each run is one line of markers in the order of its steps,
+with arrows along it showing the direction of the path: deflation (dV/V growing) or
+re-inflation (dV/V shrinking); a deflation and a re-inflation through the same volumes that
+do not retrace each other show the hysteresis of the buckling. The pressure is in units of
+the classical buckling pressure ``p_c = 4 sqrt(f kappa A)/R^2``
+(:func:`shellbuckle.theory.classical_threshold`; ``f`` the energy convention's factor), with
+the uniformly shrunk sphere's pressure for reference.
+
+This module works on :class:`~shellbuckle.run.Run` objects and opens the branches it finds
+with the class of the run it is given, so the Run itself can draw the figure
+(:meth:`shellbuckle.run.Run.pv`) without an import circle.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import theory
+
+__all__ = ["family", "plot_pv"]
+
+
+def _parent_path(run) -> Path | None:
+    parent = run.store.parent
+    return None if not parent else Path(parent["path"]).resolve()
+
+
+def family(run, search=None) -> list:
+    """``run`` and its branches (and theirs), in the order found: the run folders in
+    ``search`` (default: the folder holding ``run``) whose ``run.json`` names ``run`` or one of
+    its branches as parent. Folders that are not runs are skipped."""
+    opener = type(run)
+    root = Path(run.path).resolve()
+    search = root.parent if search is None else Path(search)
+    candidates = []
+    for folder in sorted(p for p in search.iterdir() if (p / "run.json").is_file()):
+        if folder.resolve() == root:
+            continue
+        try:
+            candidates.append(opener.open(folder))
+        except (ValueError, OSError):
+            continue
+    members, known = [run], {root}
+    grew = True
+    while grew:
+        grew = False
+        for other in candidates:
+            path = Path(other.path).resolve()
+            if path not in known and _parent_path(other) in known:
+                members.append(other)
+                known.add(path)
+                grew = True
+    return members
+
+
+def _direction(x) -> str:
+    change = float(x[-1] - x[0]) if len(x) > 1 else 0.0
+    return "deflation" if change > 0 else "re-inflation" if change < 0 else "fixed volume"
+
+
+def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
+    """Arrowheads at the middle of about ``n_arrows`` segments, pointing along the path."""
+    n = len(x) - 1
+    if n < 1:
+        return
+    for i in sorted(set(np.linspace(0, n - 1, min(n, n_arrows)).round().astype(int))):
+        if x[i] == x[i + 1] and y[i] == y[i + 1]:
+            continue
+        mid = (0.5 * (x[i] + x[i + 1]), 0.5 * (y[i] + y[i + 1]))
+        ax.annotate("", xy=mid, xytext=(x[i], y[i]),
+                    arrowprops=dict(arrowstyle="-|>", color=color, lw=1.0,
+                                    mutation_scale=11, shrinkA=0, shrinkB=0))
+
+
+def plot_pv(runs, path=None, *, theory_curve: bool = True):
+    """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
+    as p/p_c against dV/V, each with arrows in the direction of its path and labelled
+    with its folder name and direction; the first run's parameters set ``p_c`` and the title.
+    Saved to ``path`` (PNG, or PDF by the suffix) when given; returns the
+    :class:`~matplotlib.figure.Figure`."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    runs = [runs] if hasattr(runs, "table") else list(runs)
+    if not runs:
+        raise ValueError("plot_pv needs at least one run")
+    params = runs[0].params
+    p_c = theory.classical_threshold(params).pressure
+    fig = Figure(figsize=(5.0, 3.8), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    xmax = 0.05
+    for i, run in enumerate(runs):
+        table = run.table
+        x = np.asarray(table["dV_over_V"], float)
+        y = np.asarray(table["pressure"], float) / p_c
+        if not len(x):
+            continue
+        color = f"C{i % 10}"
+        ax.plot(x, y, "o-", ms=3, lw=1.0, color=color,
+                label=f"{Path(run.path).name} ({_direction(x)})")
+        _arrows(ax, x, y, color)
+        xmax = max(xmax, float(np.nanmax(x)))
+    xmax *= 1.05
+    if theory_curve:
+        grid = np.linspace(0.0, min(xmax, 0.999), 300)
+        ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_c, "--", color="0.5",
+                lw=0.8, label="uniformly shrunk sphere")
+    ax.axhline(1.0, color="0.3", lw=0.6, ls=":")
+    ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax),
+           ylabel=r"pressure $p/p_c$,  $p_c = 4\sqrt{f\kappa A}/R^2$ (classical buckling)")
+    ax.yaxis.label.set_size(8)
+    ax.legend(frameon=False, fontsize=7)
+    ax.set_title(rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
+                 + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"), fontsize=9)
+    if path is not None:
+        fig.savefig(path, dpi=200)
+    return fig
