@@ -43,7 +43,7 @@ def test_one_run_gives_its_energy_figure_and_gallery(runs, tmp_path, capsys):
     out = tmp_path / "figs"
     assert main(["plot", str(cycle), "--out", str(out), "--dpi", "120"]) == 0
     printed = _printed(capsys)
-    expected = {f"cycle_{name}.{fmt}" for name in ("fig09_energy", "gallery")
+    expected = {f"cycle_{name}.{fmt}" for name in ("fig09_energy", "gallery", "pv")
                 for fmt in ("png", "pdf")}
     assert {p.name for p in out.iterdir()} == expected
     assert sorted(printed) == sorted(str(out / name) for name in expected)
@@ -72,8 +72,9 @@ def test_several_runs_pairs_and_formats(runs, tmp_path, capsys, monkeypatch):
     names = {p.name for p in out.iterdir()}
     assert sorted(printed) == sorted(str(out / n) for n in names)  # all written, all printed
     assert all(n.endswith(".png") for n in names)
-    assert {"cycle_fig09_energy.png", "cycle_gallery.png", "plain_fig09_energy.png",
-            "plain_gallery.png", "fig07_gallery.png", "fig09_energy.png",
+    assert {"cycle_fig09_energy.png", "cycle_gallery.png", "cycle_pv.png",
+            "plain_fig09_energy.png", "plain_gallery.png", "plain_pv.png",
+            "fig07_gallery.png", "fig09_energy.png",
             "fig03_potato_capsule.png", "fig11_paths.png"} <= names
     assert len(names) > 8  # and the across-run figures (plots.across)
     assert all(_valid(out / n) for n in names)
@@ -88,9 +89,10 @@ def test_across_run_figures_are_skipped_when_unavailable(runs, tmp_path, capsys,
         assert main(["plot", *map(str, runs), "--out", str(out), "--format", "pdf"]) == 0
     assert "across-run figures" in caplog.text
     names = {p.name for p in out.iterdir()}
-    assert names == {"cycle_fig09_energy.pdf", "cycle_gallery.pdf", "plain_fig09_energy.pdf",
-                     "plain_gallery.pdf", "fig07_gallery.pdf", "fig09_energy.pdf"}
-    assert len(_printed(capsys)) == 6
+    assert names == {"cycle_fig09_energy.pdf", "cycle_gallery.pdf", "cycle_pv.pdf",
+                     "plain_fig09_energy.pdf", "plain_gallery.pdf", "plain_pv.pdf",
+                     "fig07_gallery.pdf", "fig09_energy.pdf"}
+    assert len(_printed(capsys)) == 8
 
 
 def test_a_run_named_twice_gets_distinct_files(runs, tmp_path, capsys):

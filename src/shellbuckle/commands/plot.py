@@ -1,8 +1,9 @@
 """``shellbuckle plot DIR... [--out DIR] [--format png,pdf] [--at DV] [--potato DIR --capsule DIR]
 [--pair DIR DIR]``: the paper's figures that the given runs allow.
 
-For each run: Fig. 9 (E/kappa vs dV/V with the theory) and the gallery of its conformations
-(:mod:`shellbuckle.plots.paper`). With several runs: Fig. 7 (conformations at dV/V = 0.854),
+For each run: Fig. 9 (E/kappa vs dV/V with the theory), the gallery of its conformations
+(:mod:`shellbuckle.plots.paper`) and its pressure-volume figure with the branches started from
+it (:func:`shellbuckle.plots.pv.plot_pv`). With several runs: Fig. 7 (conformations at dV/V = 0.854),
 Fig. 9 of all runs together and the across-run Figs. 4, 5 and 10
 (:func:`shellbuckle.plots.across.plot_across_runs`). ``--potato``/``--capsule``: Fig. 3;
 ``--pair``: Fig. 11. Prints the files written, one per line. Nothing is written in the runs.
@@ -23,7 +24,8 @@ def register(sub) -> None:
         sub, "plot", help="write the paper's figures (Figs. 3, 4, 5, 7, 9, 10, 11, galleries) from run folders",
         description="Write the figures the runs DIR... allow, as PNG (300 dpi) and PDF: for "
                     "each run, Fig. 9 (E/kappa vs dV/V with U_sphere, U_axisym, the primary "
-                    "buckling and the crossing) and the gallery of its conformations; with "
+                    "buckling and the crossing), the gallery of its conformations and the "
+                    "pressure-volume figure (p/p_c vs dV/V) of the run and its branches; with "
                     "several runs, Fig. 7 (one conformation per run at dV/V = 0.854 or the "
                     "nearest stored step), Fig. 9 of all the runs and the across-run Figs. 4, 5 "
                     "and 10; with --potato/--capsule, Fig. 3; with --pair, Fig. 11. "
@@ -108,6 +110,7 @@ def _cmd(args) -> int:
     for run, stem in zip(runs, _stems(runs)):
         save(paper.fig9_energy([run]), f"{stem}_fig09_energy")
         save(paper.run_gallery(run, every=args.every), f"{stem}_gallery")
+        save(run.pv(), f"{stem}_pv")  # p/p_c vs dV/V, with the run's branches beside it
     if len(runs) > 1:
         at = paper.GALLERY_DV_OVER_V if args.at is None else args.at
         save(paper.fig7_gallery(runs, at=at, reference=reference), "fig07_gallery")
