@@ -71,187 +71,54 @@ Guarantees and how they are kept:
 
 JSON values may contain ``NaN`` (Python's json reads and writes it). Step 0 is the initial
 state: the stress-free sphere for a new run, the parent's step for a branch.
+
+This module is the :class:`RunStore` and the folder-level logic (creating, reopening, resuming,
+branching, locking, scanning the steps). The parts it builds on: the folder's names and
+constants (:mod:`~shellbuckle.store.layout`), the values of run.json
+(:mod:`~shellbuckle.store.meta`), the step file format with its checksums and damage reports
+(:mod:`~shellbuckle.store.steps`), run.json rebuilt or refused and damaged steps set aside
+(:mod:`~shellbuckle.store.repair`), and the per-step table (:mod:`~shellbuckle.store.table`).
 """
+
 
 from __future__ import annotations
 
 import copy
-import csv
-import functools
-import hashlib
-import io
 import json
 import logging
-import math
 import operator
 import os
 import platform
-import subprocess
 import sys
 import uuid
 from collections.abc import Mapping
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pandas as pd
 
 from ..util import now
 from .atomic import (FileLock, atomic_write_bytes, fsync_folder, remove_temporaries,
                      temporary_target)
+# the store's names are all importable from here: the public ones and the helpers that other
+# modules and the tests use
+from .layout import (_INTEGER_COLUMNS, _WRITER_FILES, ANALYSIS_COLUMNS,  # noqa: F401
+                     ANALYSIS_JSON, ANALYSIS_LOCK, CHECKSUM_ATTR, DESCRIPTION_ATTR, FORMAT_NAME,
+                     FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS, REQUIRED_MESH_FIELDS, RUN_JSON,
+                     STATUSES, STEPS_DIR, TABLE_COLUMNS, TABLE_CSV, WRITER_LOCK, _h5_bytes,
+                     _has_step_files, _ranges, _read_h5, _read_mesh_arrays, _span, _step_indices,
+                     check_format, step_file)
+from .meta import (_differences, _identity, _json_dict, _jsonable, _scalar_dict,  # noqa: F401
+                   _session, _short, _versions, source_commit)
+from .repair import (_check_fields, _how_to_replace_run_json, _read_meta,  # noqa: F401
+                     _rebuilt_meta, _redo_branch, _stored_description, damaged_to_set_aside,
+                     set_aside_step)
+from .steps import (_HDF5_SIGNATURE, _WARNED, DamagedStep, _attribute_value,  # noqa: F401
+                    _check_arrays, _check_name, _signature, _text_attribute, array_sha256,
+                    damage_summary, read_step_file, step_checksums, step_file_bytes)
+from .table import _csv_cell, _integer_like, table_columns, table_csv, table_frame  # noqa: F401
 
 log = logging.getLogger(__name__)
-
-FORMAT_NAME = "shellbuckle-run"
-FORMAT_VERSION = 1
-
-#: Per-step table columns of SPEC §7, in this order, always present (NaN where not recorded).
-TABLE_COLUMNS = ("step", "target_dV_over_V", "dV_over_V", "E_total", "E_bend", "E_stretch",
-                 "E_over_kappa", "E_before_c0_cycle", "pressure", "grad_norm", "iterations",
-                 "inertia", "min_distance", "wall_s")
-#: Analysis columns of SPEC §7, placed after TABLE_COLUMNS when any step has them.
-ANALYSIS_COLUMNS = ("shape", "n_dimples", "corners", "W")
-STATUSES = ("running", "paused", "finished", "failed", "interrupted")
-
-RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
-TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
-WRITER_LOCK, ANALYSIS_LOCK = ".lock", ".analysis.lock"
-_WRITER_FILES = {RUN_JSON, MESH_H5, TABLE_CSV}
-_INTEGER_COLUMNS = {"step", "iterations", "inertia", "n_dimples", "corners", "W"}
-#: Attribute of a step file holding the checksums of its content (JSON), and of mesh.h5
-#: holding a copy of run.json as created.
-CHECKSUM_ATTR, DESCRIPTION_ATTR = "sha256", "run_json"
-#: Fields every run.json has (all written since format version 1), and those of its "mesh".
-REQUIRED_FIELDS = {"run_id": str, "params": dict, "protocol": dict, "mesh": dict,
-                   "status": str, "sessions": list}
-REQUIRED_MESH_FIELDS = {"n_vertices": int, "sha256": str}
-_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-
-
-# --------------------------------------------------------------------------- JSON values
-
-def _jsonable(value, where: str):
-    """``value`` as plain JSON types (numpy scalars/arrays converted); ValueError otherwise."""
-    if isinstance(value, Mapping):
-        out = {}
-        for key, item in value.items():
-            if not isinstance(key, str):
-                raise ValueError(f"{where}: key {key!r} must be a string")
-            out[key] = _jsonable(item, f"{where}.{key}")
-        return out
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(item, f"{where}[{i}]") for i, item in enumerate(value)]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist(), where)
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise ValueError(f"{where} = {value!r} cannot be stored (allowed: numbers, strings, "
-                     "booleans, None, and lists or dicts of these)")
-
-
-def _json_dict(value, where: str) -> dict:
-    if not isinstance(value, Mapping):
-        raise ValueError(f"{where} must be a dict, got {type(value).__name__}")
-    return json.loads(json.dumps(_jsonable(value, where)))  # tuples -> lists, canonical
-
-
-def _scalar_dict(values, where: str, reserved=()) -> dict:
-    """A flat dict of JSON scalars (a step record or analysis results)."""
-    out = _json_dict(values, where)
-    for key, item in out.items():
-        if isinstance(item, (list, dict)):
-            raise ValueError(f"{where}.{key} must be a number, string, boolean or None, got "
-                             f"{type(item).__name__}; store arrays with arrays=...")
-        if key in reserved:
-            raise ValueError(f"{where}.{key}: the name {key!r} is reserved")
-    return out
-
-
-def _differences(stored, wanted, where: str = "") -> list[str]:
-    """Human-readable list of the paths where two JSON values differ (ints equal floats)."""
-    if isinstance(stored, dict) and isinstance(wanted, dict):
-        out = []
-        for key in sorted(set(stored) | set(wanted), key=str):
-            sub = f"{where}.{key}" if where else str(key)
-            if key not in stored:
-                out.append(f"{sub}: not stored, requested {wanted[key]!r}")
-            elif key not in wanted:
-                out.append(f"{sub}: stored {stored[key]!r}, not requested")
-            else:
-                out.extend(_differences(stored[key], wanted[key], sub))
-        return out
-    same = stored == wanted or (isinstance(stored, float) and isinstance(wanted, float)
-                                and math.isnan(stored) and math.isnan(wanted))
-    return [] if same else [f"{where}: stored {_short(stored)}, requested {_short(wanted)}"]
-
-
-def _short(value, limit: int = 6) -> str:
-    """``repr`` of a value; a long list by its first two values, its last and its length
-    (a schedule of 50 volumes is not printed whole in an error message)."""
-    if isinstance(value, (list, tuple)) and len(value) > limit:
-        return f"[{value[0]!r}, {value[1]!r}, ..., {value[-1]!r}] ({len(value)} values)"
-    return repr(value)
-
-
-def _versions() -> dict:
-    # the modules' own version attributes: importlib.metadata scans the installed
-    # distributions (about 5 ms a call, twice per run)
-    import scipy
-
-    from .. import __version__
-
-    versions = {"python": sys.version.split()[0], "numpy": np.__version__,
-                "h5py": h5py.__version__, "hdf5": h5py.version.hdf5_version,
-                "pandas": pd.__version__, "shellbuckle": __version__,
-                "scipy": scipy.__version__}
-    commit = source_commit()
-    if commit:
-        versions["shellbuckle_git"] = commit
-    return versions
-
-
-@functools.lru_cache(maxsize=None)
-def source_commit() -> str | None:
-    """The git commit of shellbuckle's source when it runs from a git checkout (an editable
-    install), with ``+dirty`` if the package's files differ from it; None otherwise.
-
-    The package version does not tell two commits apart, and after buckling a run's
-    trajectory depends on the code down to round-off, so the commit is what reproduces a run."""
-    package = Path(__file__).resolve().parents[1]
-    git = ["git", "-C", str(package)]
-    try:
-        tracked = subprocess.run(git + ["ls-files", "--", "__init__.py"], capture_output=True,
-                                 text=True, timeout=10, check=True).stdout.strip()
-        if not tracked:
-            return None
-        commit = subprocess.run(git + ["rev-parse", "--short=12", "HEAD"], capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
-                               text=True, timeout=10, check=True).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return f"{commit}+dirty" if dirty else commit or None
-
-
-def _session() -> dict:
-    return {"started": now(), "command_line": list(sys.argv), "versions": _versions()}
-
-
-# --------------------------------------------------------------------------- arrays
-
-def array_sha256(*named_arrays) -> str:
-    """SHA-256 over ``(name, array)`` pairs: name, little-endian dtype, shape and raw bytes."""
-    h = hashlib.sha256()
-    for name, arr in named_arrays:
-        a = np.ascontiguousarray(arr)
-        a = a.astype(a.dtype.newbyteorder("<"), copy=False)
-        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
 
 
 def _check_mesh(X0, faces, rest):
@@ -273,369 +140,6 @@ def _check_mesh(X0, faces, rest):
     return X0, faces, rest
 
 
-def _check_name(name, where: str) -> None:
-    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
-        raise ValueError(f"{where} array name {name!r} must be a non-empty string without '/'")
-
-
-def _check_arrays(arrays) -> dict:
-    out = {}
-    for name, arr in (arrays or {}).items():
-        _check_name(name, "step")
-        arr = np.asarray(arr)
-        if arr.dtype == object:
-            raise ValueError(f"step array {name!r} must be numeric, got dtype object")
-        out[name] = np.ascontiguousarray(arr)
-    return out
-
-
-def step_checksums(X, record_json: str, arrays: Mapping | None = None) -> dict[str, str]:
-    """The checksums a step file stores in its attribute ``sha256`` (as JSON): the positions
-    ``"X"`` and each extra array ``"arrays/<name>"`` by :func:`array_sha256`, the record by
-    the SHA-256 of ``record_json``'s UTF-8 bytes."""
-    sums = {"X": array_sha256(("X", X)),
-            "record_json": hashlib.sha256(record_json.encode("utf-8")).hexdigest()}
-    for name in sorted(arrays or {}):
-        sums[f"arrays/{name}"] = array_sha256((name, arrays[name]))
-    return sums
-
-
-class DamagedStep(ValueError):
-    """A step file that cannot be trusted; the message says which file and what is wrong."""
-
-
-def _text_attribute(f, name: str):
-    try:
-        value = f.attrs[name]
-    except KeyError:
-        return None
-    return value.decode("utf-8") if isinstance(value, bytes) else value
-
-
-def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
-                   parts: str = "all"):
-    """``(record, X, arrays, checked)`` of the step file ``path`` of step ``k``, verified:
-    it opens as HDF5, its record parses as a dict naming step ``k``, ``X`` is a finite
-    ``(n_vertices, 3)`` float64 array, and the content matches its checksums (``checked`` is
-    False for a file written before the checksums, which cannot be checked).
-    :class:`DamagedStep` naming the file and what is wrong otherwise.
-
-    ``parts``: ``"all"``; or ``"X"`` or ``"arrays"`` to read and check only the positions or
-    only the extra arrays (the other values are then None).
-    """
-    name = f"{path.parent.name}/{path.name}"
-    try:
-        size = path.stat().st_size
-    except FileNotFoundError:
-        raise DamagedStep(f"{name} is missing although later steps exist") from None
-    if size == 0:
-        raise DamagedStep(f"{name} is empty (0 bytes)")
-    text = X = arrays = None
-    try:
-        with h5py.File(path, "r", locking=False) as f:
-            sums = _text_attribute(f, CHECKSUM_ATTR)
-            if parts == "all":
-                text = _text_attribute(f, "record_json")
-            if parts in ("all", "X"):
-                try:
-                    X = f["X"][()]
-                except KeyError:
-                    X = None
-            if parts in ("all", "arrays"):
-                group = f.get("arrays")
-                arrays = {key: group[key][()] for key in group} if group is not None else {}
-    except (OSError, KeyError, ValueError, RuntimeError, TypeError, AttributeError,
-            UnicodeDecodeError) as exc:
-        with open(path, "rb") as fh:
-            head = fh.read(len(_HDF5_SIGNATURE))
-        if head != _HDF5_SIGNATURE:
-            raise DamagedStep(f"{name} is not an HDF5 file ({size} bytes starting with "
-                              f"{head!r})") from None
-        raise DamagedStep(f"{name} cannot be read as HDF5, truncated or overwritten "
-                          f"({size} bytes; {exc})") from None
-    record = None
-    if parts == "all":
-        if not isinstance(text, str):
-            raise DamagedStep(f"{name} has no step record (attribute record_json)")
-        try:
-            record = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise DamagedStep(f"{name}: its record (attribute record_json) is not valid JSON "
-                              f"({exc})") from None
-        if not isinstance(record, dict) or record.get("step") != k:
-            said = record.get("step") if isinstance(record, dict) else type(record).__name__
-            raise DamagedStep(f"{name}: its record (attribute record_json) is not the record "
-                              f"of step {k} (it says {said!r})")
-    if parts in ("all", "X"):
-        if not isinstance(X, np.ndarray):
-            raise DamagedStep(f"{name} has no positions (dataset X)")
-        expected = (n_vertices, 3) if n_vertices is not None else (len(X), 3)
-        if X.shape != expected or X.dtype != np.float64 or not np.isfinite(X).all():
-            raise DamagedStep(f"{name}: its positions X are {X.dtype} {X.shape}, expected "
-                              f"finite float64 {expected}")
-    if sums is None:
-        log.debug("%s has no checksums (written before step checksums existed); its content "
-                  "cannot be checked", path)
-        return record, X, arrays, False
-    try:
-        stored = json.loads(sums)
-    except json.JSONDecodeError:
-        stored = None
-    if not isinstance(stored, dict):
-        raise DamagedStep(f"{name}: its checksums (attribute {CHECKSUM_ATTR}) are unreadable")
-    computed = {}
-    if X is not None:
-        computed["X"] = array_sha256(("X", X))
-    if text is not None:
-        computed["record_json"] = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    for key in sorted(arrays or {}):
-        computed[f"arrays/{key}"] = array_sha256((key, arrays[key]))
-    expected_parts = {p for p in stored if parts == "all" or p == parts
-                      or (parts == "arrays" and p.startswith("arrays/"))}
-    for part in sorted(expected_parts | set(computed), key=lambda p: (p != "X", p)):
-        what = "the positions X" if part == "X" else (
-            "the record (attribute record_json)" if part == "record_json" else part)
-        if part not in computed:
-            raise DamagedStep(f"{name}: {what}, recorded in its checksums, is missing")
-        if part not in stored:
-            raise DamagedStep(f"{name}: {what} has no checksum (added after writing)")
-        if stored[part] != computed[part]:
-            raise DamagedStep(f"{name}: checksum mismatch in {what} (SHA-256 stored "
-                              f"{str(stored[part])[:12]}..., the content gives "
-                              f"{computed[part][:12]}...): the file changed after it was "
-                              "written")
-    return record, X, arrays, True
-
-
-def _h5_bytes(write) -> bytes:
-    """The bytes of a complete HDF5 file built in memory by ``write(h5py.File)``."""
-    buffer = io.BytesIO()
-    with h5py.File(buffer, "w") as f:
-        write(f)
-    return buffer.getvalue()
-
-
-def _attribute_value(value):
-    """A JSON scalar as an HDF5 attribute value (None is only kept in ``record_json``)."""
-    return value if not isinstance(value, str) else np.array(value, dtype=h5py.string_dtype())
-
-
-def _read_h5(path: Path, read):
-    try:
-        with h5py.File(path, "r", locking=False) as f:
-            return read(f)
-    except FileNotFoundError:
-        raise ValueError(f"{path} is missing; the run folder is damaged") from None
-    except OSError as exc:
-        raise ValueError(f"{path} cannot be read as HDF5 ({exc}); the run folder is "
-                         "damaged") from None
-
-
-def _read_meta(path: Path) -> tuple[dict, bool]:
-    """The contents of ``path/run.json`` and False, or the description rebuilt from
-    ``mesh.h5`` and True when run.json is missing; ValueError with a clear message (what to do)
-    if no run can be read there."""
-    if not path.exists():
-        raise ValueError(f"{path} does not exist; expected a run folder (made by "
-                         "`shellbuckle deflate --out DIR`)")
-    if not path.is_dir():
-        raise ValueError(f"{path} is a file, not a run folder")
-    try:
-        text = (path / RUN_JSON).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return _rebuilt_meta(path), True
-    try:
-        meta = json.loads(text)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path / RUN_JSON} is not valid JSON ({exc}); "
-                         + _how_to_replace_run_json(path)) from None
-    meta = check_format(meta, path / RUN_JSON, FORMAT_NAME, FORMAT_VERSION)
-    _check_fields(meta, path)
-    if not (path / STEPS_DIR).is_dir():
-        parent = meta.get("parent")
-        again = (f"run again the command that made it (`shellbuckle continue {parent['path']} "
-                 f"--step {parent['step']} --out {path}` with the same options)"
-                 if isinstance(parent, dict) and {"path", "step"} <= set(parent)
-                 else f"run `shellbuckle resume {path}`")
-        raise ValueError(
-            f"{path} has no {STEPS_DIR}/ folder: the files of its finished steps "
-            f"({STEPS_DIR}/step_NNNNNN.h5) were moved or deleted. Put the folder back from a "
-            f"backup; or, to compute the run again from its start, create an empty folder "
-            f"{path / STEPS_DIR} and {again}")
-    return meta, False
-
-
-def _check_fields(meta: dict, path: Path) -> None:
-    """ValueError naming the fields of run.json that are missing or of the wrong type."""
-    problems = []
-    for name, kind in REQUIRED_FIELDS.items():
-        if name not in meta:
-            problems.append(f"{name} (missing)")
-        elif not isinstance(meta[name], kind):
-            problems.append(f"{name} (a {type(meta[name]).__name__}, expected a "
-                            f"{kind.__name__})")
-    if isinstance(meta.get("mesh"), dict):
-        for name, kind in REQUIRED_MESH_FIELDS.items():
-            value = meta["mesh"].get(name)
-            if value is None:
-                problems.append(f"mesh.{name} (missing)")
-            elif not isinstance(value, kind) or isinstance(value, bool):
-                problems.append(f"mesh.{name} (a {type(value).__name__}, expected a "
-                                f"{kind.__name__})")
-    if problems:
-        raise ValueError(f"{path / RUN_JSON} lacks the field(s) it needs: "
-                         f"{', '.join(problems)}; " + _how_to_replace_run_json(path))
-
-
-def _how_to_replace_run_json(path: Path) -> str:
-    """What to do about an unusable run.json: rebuild it from the copy in mesh.h5 if there
-    is one, else restore it from a backup."""
-    if _stored_description(path) is not None:
-        return (f"mesh.h5 holds a copy of the run's description: move run.json aside "
-                f"(`mv {path / RUN_JSON} {path / RUN_JSON}.bad`) and the run opens from the "
-                f"copy; `shellbuckle resume {path}` then writes a new run.json")
-    return (f"restore {RUN_JSON} from a backup: the run's parameters and protocol are stored "
-            "nowhere else in the folder")
-
-
-def _stored_description(path: Path) -> str | None:
-    """The copy of run.json kept in ``path/mesh.h5`` (None if absent or unreadable)."""
-    try:
-        with h5py.File(path / MESH_H5, "r", locking=False) as f:
-            text = f.attrs.get(DESCRIPTION_ATTR)
-    except (OSError, KeyError, ValueError, RuntimeError):
-        return None
-    if isinstance(text, bytes):
-        text = text.decode("utf-8", "replace")
-    return text if isinstance(text, str) else None
-
-
-def _rebuilt_meta(path: Path) -> dict:
-    """The description of the run in ``path`` whose run.json is missing, from the copy in
-    mesh.h5, checked against the mesh arrays; ValueError saying what to do otherwise."""
-    has_steps = _has_step_files(path)
-    if not (path / MESH_H5).exists() and not has_steps:
-        raise ValueError(f"{path} is not a shellbuckle run folder (it has no {RUN_JSON})")
-    text = _stored_description(path)
-    if text is None:
-        if not has_steps:
-            raise ValueError(
-                f"{path} holds a run whose creation was interrupted before {RUN_JSON} was "
-                "written (it has no finished step); start it again with the same "
-                f"`shellbuckle deflate ... --out {path}` (the folder is reused)")
-        raise ValueError(
-            f"{path} has step files but no {RUN_JSON}, and its {MESH_H5} holds no copy of the "
-            "run's description (it was written by an older shellbuckle), so the parameters "
-            f"and protocol cannot be recovered from the folder. Restore {RUN_JSON} from a "
-            f"backup; the steps themselves stay readable with h5py ({STEPS_DIR}/step_*.h5: "
-            "positions X, record in the attribute record_json); or compute the run again in "
-            "a new folder with its original options (`shellbuckle deflate ... --out NEW_DIR`)")
-    try:
-        meta = check_format(json.loads(text), path / MESH_H5, FORMAT_NAME, FORMAT_VERSION)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"the copy of {RUN_JSON} in {path / MESH_H5} is not valid JSON "
-                         f"({exc}); restore {RUN_JSON} from a backup") from None
-    _check_fields(meta, path)
-    X0, faces, rest = _read_h5(path / MESH_H5, _read_mesh_arrays)
-    if array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items())) \
-            != meta["mesh"]["sha256"]:
-        raise ValueError(f"{path / MESH_H5} does not match the SHA-256 of its own description: "
-                         f"the mesh is damaged and {RUN_JSON} is missing; restore them from a "
-                         "backup")
-    meta.update(status="interrupted", updated=now(),
-                message=f"{RUN_JSON} was missing and was rebuilt from {MESH_H5}: the run's "
-                        "status and the sessions after the first one were lost; `shellbuckle "
-                        f"resume {path}` continues the run (and writes {RUN_JSON} again)")
-    log.warning("%s has no %s; rebuilt it from the copy in %s (the status and the sessions "
-                "after the first one are lost); `shellbuckle resume %s` writes it again",
-                path, RUN_JSON, MESH_H5, path)
-    return meta
-
-
-def _step_indices(names):
-    """The step indices of the step file names among ``names`` (``step_000012.h5`` -> 12)."""
-    for name in names:
-        digits = name[5:-3]
-        if name.startswith("step_") and name.endswith(".h5") and digits.isascii() \
-                and digits.isdigit():
-            yield int(digits)
-
-
-def _has_step_files(path: Path) -> bool:
-    try:
-        return any(_step_indices(os.listdir(path / STEPS_DIR)))
-    except (FileNotFoundError, NotADirectoryError):
-        return False
-
-
-def _ranges(steps) -> str:
-    """``0..3, 5, 7..9`` for sorted step indices."""
-    parts, start = [], None
-    steps = list(steps)
-    for i, k in enumerate(steps):
-        if start is None:
-            start = k
-        if i + 1 == len(steps) or steps[i + 1] != k + 1:
-            parts.append(str(k) if k == start else f"{start}..{k}")
-            start = None
-    return ", ".join(parts)
-
-
-#: The damaged steps last warned about, by run folder: one warning per process and damage.
-_WARNED: dict[str, dict[int, str]] = {}
-
-
-def damage_summary(path, stored, damaged: Mapping[int, str]) -> str:
-    """One line on the damaged steps of the run in ``path``: which, what is wrong with each,
-    and what to do (a resume computes damaged last steps again; past a damaged step in the
-    middle, a new run continues from the last good step before it)."""
-    ks = sorted(damaged)
-    which = (f"step {ks[0]} is" if len(ks) == 1 else f"steps {_ranges(ks)} are")
-    what = "; ".join(f"step {k}: {damaged[k]}" for k in ks)
-    trailing = ks == list(range(stored[-1] - len(ks) + 1, stored[-1] + 1))
-    if trailing:
-        todo = f"`shellbuckle resume {path}` computes {'it' if len(ks) == 1 else 'them'} again"
-    else:
-        before = [k for k in stored if k < ks[0] and k not in damaged]
-        todo = ("a resume cannot go past a damaged step" + (
-            f"; `shellbuckle continue {path} --step {before[-1]} --out NEW_DIR` goes on from "
-            "the last good step before it" if before else ""))
-    return f"run {path}: {which} damaged and left out, the other steps read ({what}); {todo}"
-
-
-def _span(steps) -> str:
-    """``0..5`` for contiguous step indices (``0..0`` for one), else :func:`_ranges`."""
-    steps = list(steps)
-    if steps and steps == list(range(steps[0], steps[-1] + 1)):
-        return f"{steps[0]}..{steps[-1]}"
-    return _ranges(steps)
-
-
-def _redo_branch(store) -> str:
-    """How to make the step 0 of the branch ``store`` again."""
-    parent = store.parent
-    return (f"Run the command that made this run again (`shellbuckle continue "
-            f"{parent['path']} --step {parent['step']} --out {store.path}` with the same "
-            "options): it writes step 0 from the parent and goes on")
-
-
-def _read_mesh_arrays(f) -> tuple:
-    rest = {name: f["rest"][name][()] for name in f["rest"]} if "rest" in f else {}
-    return f["X0"][()], f["faces"][()], rest
-
-
-def check_format(data, file: Path, name: str, version: int) -> dict:
-    """``data``, read from ``file``, if it describes format ``name`` in a version up to
-    ``version`` (ValueError otherwise); the check of ``run.json`` and ``sweep.json``."""
-    if not isinstance(data, dict) or data.get("format") != name:
-        raise ValueError(f"{file} is not a {name} description")
-    if data.get("format_version", 0) > version:
-        raise ValueError(f"{file.parent} was written in {name} format version "
-                         f"{data['format_version']}; this shellbuckle reads up to version "
-                         f"{version}, please upgrade")
-    return data
-
-
 def _interrupted_creation(path: Path) -> bool:
     """True if ``path`` is empty or holds only what an interrupted ``create`` leaves behind."""
     for entry in os.scandir(path):
@@ -645,45 +149,6 @@ def _interrupted_creation(path: Path) -> bool:
             continue
         return False
     return True
-
-
-def _identity(meta: dict) -> dict:
-    """What makes two runs the same run: parameters, protocol, mesh hash and parent."""
-    parent = meta.get("parent")
-    if parent is not None:
-        parent = {key: parent[key] for key in ("run_id", "step", "positions_sha256")}
-    return {"params": meta["params"], "protocol": meta["protocol"],
-            "mesh_sha256": meta["mesh"]["sha256"], "parent": parent}
-
-
-def _integer_like(column: pd.Series) -> bool:
-    values = column.dropna()
-    if values.empty:
-        return False
-    try:
-        numbers = values.to_numpy(dtype=float)
-    except (TypeError, ValueError):
-        return False
-    return bool(np.all(np.isfinite(numbers)) and np.all(numbers == np.round(numbers))
-                and values.map(lambda v: not isinstance(v, bool)).all())
-
-
-def _signature(path: Path) -> tuple[int, int, int]:
-    """Modification time, size and inode of a file: they change when it is replaced."""
-    stat = path.stat()
-    return stat.st_mtime_ns, stat.st_size, stat.st_ino
-
-
-def _csv_cell(value, integer: bool) -> str:
-    """One cell of ``table.csv``: empty for None and NaN, the shortest repr of a float (an
-    integer-valued one as an integer in an integer column), ``True``/``False``, else ``str``."""
-    if value is None:
-        return ""
-    if isinstance(value, float):
-        if math.isnan(value):
-            return ""
-        return str(int(value)) if integer and value.is_integer() else repr(value)
-    return str(value)
 
 
 class RunStore:
@@ -837,41 +302,9 @@ class RunStore:
         stored, damaged = self._scan(warn=False)
         if not damaged:
             return []
-        trailing = []
-        for k in reversed(stored):
-            if k not in damaged:
-                break
-            trailing.append(k)
-        middle = sorted(set(damaged) - set(trailing))
-        if middle:
-            first = middle[0]
-            before = [k for k in stored if k < first and k not in damaged]
-            others = [k for k in sorted(damaged) if k != first]
-            also = (f"; damaged too: step(s) {_ranges(others)}" if others else "")
-            if before:
-                k = before[-1]
-                how = (f"To go on from step {k}, the last good step before it, start a new "
-                       f"run from it: `shellbuckle continue {self._path} --step {k} --out "
-                       f"NEW_DIR` (the same as `shellbuckle deflate --from {self._path} --step "
-                       f"{k} --out NEW_DIR`)")
-            else:
-                how = ("No good step comes before it: compute the run again in a new folder "
-                       "with its options (`shellbuckle deflate ... --out NEW_DIR`)")
-            raise ValueError(
-                f"step {first} of run {self._path} is damaged ({damaged[first]}){also}; "
-                f"steps after it exist, so the run cannot go on from its last step. {how}. "
-                "The good steps stay readable.")
         names = []
-        for k in sorted(trailing):
-            path = self._step_path(k)
-            n = 1
-            while path.with_name(f"{path.name}.damaged-{n}").exists():
-                n += 1
-            target = path.with_name(f"{path.name}.damaged-{n}")
-            os.replace(path, target)
-            names.append(target.name)
-            log.warning("run %s: set aside the damaged step %d (%s) as %s/%s; it is computed "
-                        "again", self._path, k, damaged[k], STEPS_DIR, target.name)
+        for k in damaged_to_set_aside(self._path, stored, damaged):
+            names.append(set_aside_step(self._path, k, damaged[k]))
             self._step_cache.pop(k, None)
         fsync_folder(self._path / STEPS_DIR)
         self._scan_cache = None
@@ -986,7 +419,7 @@ class RunStore:
     # ------------------------------------------------------------------ steps
 
     def _step_path(self, k: int) -> Path:
-        return self._path / STEPS_DIR / f"step_{k:06d}.h5"
+        return step_file(self._path, k)
 
     def _scan(self, warn: bool = True) -> tuple[list[int], dict[int, str]]:
         """The stored steps ``0..K`` (K the highest step file) and the damaged ones among them,
@@ -1169,22 +602,9 @@ class RunStore:
         record = {"step": k, **{key: v for key, v in record.items() if key != "step"}}
         arrays = _check_arrays(arrays)
         record_json = json.dumps(record)
-
-        def write(f):
-            f.create_dataset("X", data=X)
-            for key, value in record.items():
-                if value is not None:
-                    f.attrs[key] = _attribute_value(value)
-            f.attrs["record_json"] = record_json
-            if arrays:
-                group = f.create_group("arrays")
-                for name, arr in arrays.items():
-                    group.create_dataset(name, data=arr)
-            f.attrs[CHECKSUM_ATTR] = json.dumps(step_checksums(X, record_json, arrays))
-
         self._take_writer_lock()
         path = self._step_path(k)
-        atomic_write_bytes(path, _h5_bytes(write))
+        atomic_write_bytes(path, step_file_bytes(X, record, record_json, arrays))
         # what record() would read back from the file just written
         self._step_cache[k] = (_signature(path), json.loads(record_json), None)
         self._write_table()
@@ -1242,10 +662,7 @@ class RunStore:
         stored, damaged = self._scan()
         rows = [{**self._step_cache[k][1], **analysis.get(k, {})}
                 for k in stored if k not in damaged]
-        present = list(dict.fromkeys(key for row in rows for key in row))
-        columns = list(TABLE_COLUMNS) + [c for c in ANALYSIS_COLUMNS if c in present]
-        columns += [c for c in present if c not in columns]
-        return rows, columns
+        return rows, table_columns(rows)
 
     def table(self) -> pd.DataFrame:
         """The per-step table as a DataFrame, one row per finished step.
@@ -1256,28 +673,13 @@ class RunStore:
         order of appearance. Integer-valued columns such as ``iterations`` are int64, or the
         nullable ``Int64`` where some steps lack them.
         """
-        rows, columns = self._rows()
-        table = pd.DataFrame(rows, columns=columns)  # new dicts of scalars: no copy needed
-        for column in columns:
-            if column in _INTEGER_COLUMNS and _integer_like(table[column]):
-                has_na = table[column].isna().any()
-                table[column] = table[column].astype("Int64" if has_na else np.int64)
-            elif column in TABLE_COLUMNS and table[column].isna().all():
-                table[column] = table[column].astype(np.float64)
-        return table
+        return table_frame(*self._rows())
 
     def _write_table(self) -> None:
         """``table.csv`` from the stored records, with the csv module rather than through
         :meth:`table` (pandas takes ~7 ms a step for what this writes in well under one);
         ``pandas.read_csv`` reads it back to the table's values."""
-        rows, columns = self._rows()
-        out = io.StringIO()
-        writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(columns)
-        for row in rows:
-            writer.writerow([_csv_cell(row.get(column), column in _INTEGER_COLUMNS)
-                             for column in columns])
-        atomic_write_bytes(self._path / TABLE_CSV, out.getvalue().encode("utf-8"))
+        atomic_write_bytes(self._path / TABLE_CSV, table_csv(*self._rows()))
 
     # ------------------------------------------------------------------ status and writing
 
