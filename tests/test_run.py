@@ -74,6 +74,7 @@ def test_kill_9_then_resume_gives_the_same_table(tmp_path, uninterrupted):
     _compare(done.table, uninterrupted.table)
 
 
+@pytest.mark.skipif(_load_mkl() is None, reason="single precision needs PARDISO (Intel MKL)")
 def test_a_run_whose_certificates_turn_to_double_precision_resumes_exactly(tmp_path,
                                                                            monkeypatch):
     # Newton's method certifies the minima in single precision while it can; once a step

@@ -82,6 +82,56 @@ def test_make_solver():
         make_solver(object())
 
 
+_NO_MKL_CHILD = """
+import json
+import numpy as np
+import scipy.sparse as sp
+from shellbuckle.solve.linear import _load_mkl, make_solver
+
+# a KKT-like system: a sparse indefinite block K (a shifted 1D Laplacian) bordered by two
+# dense constraint columns G, with the zero block of the multipliers
+n, m = 60, 2
+rng = np.random.default_rng(0)
+K = sp.diags([-1.0, 2.2, -1.0], [-1, 0, 1], shape=(n, n)) - 0.5 * sp.identity(n)
+G = sp.csr_matrix(rng.standard_normal((n, m)))
+A = sp.bmat([[K, G], [G.T, None]], format="csc")
+b = rng.standard_normal(n + m)
+solver = make_solver()
+solver.factor(A)
+x = solver.solve(b)
+try:
+    make_solver("pardiso")
+    pardiso = "available"
+except ValueError as exc:
+    pardiso = str(exc)
+eig = np.linalg.eigvalsh(A.toarray())
+print(json.dumps(dict(
+    mkl=_load_mkl() is not None, name=type(solver).__name__, pardiso=pardiso,
+    residual=float(np.linalg.norm(A @ x - b) / np.linalg.norm(b)),
+    inertia=list(map(int, solver.inertia())),
+    dense_inertia=[int((eig > 0).sum()), int((eig < 0).sum()), 0])))
+"""
+
+
+def test_without_mkl_the_default_solver_is_a_fallback_that_solves_a_kkt_system():
+    # SHELLBUCKLE_NO_MKL=1 takes the path of a machine without MKL (e.g. ARM), so the
+    # fallback stays exercised where MKL is installed. A fresh process, since _load_mkl
+    # caches its answer. Oracles: the residual and the dense eigenvalues (inertia)
+    import json
+    import subprocess
+    import sys
+
+    env = dict(os.environ, SHELLBUCKLE_NO_MKL="1")
+    done = subprocess.run([sys.executable, "-c", _NO_MKL_CHILD], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out["mkl"] is False and out["name"] != "PardisoSolver"
+    assert "needs Intel MKL" in out["pardiso"]
+    assert out["residual"] <= 1e-10
+    assert out["inertia"] == out["dense_inertia"] and out["inertia"][1] >= 2
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_upper_triangle_input_is_the_same_matrix(backend):
     A = _random_symmetric(40, 3)

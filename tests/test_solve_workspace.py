@@ -64,11 +64,12 @@ def test_a_warm_start_at_a_certified_minimum_of_the_same_energy_certifies_it():
     n_double, n_single = solver.counts["double"], solver.counts["single"]
     back = newton(energy, volume, start, 0.9 * V0, warm_start=[None, tok], history=True,
                   **options)
-    assert back.success and back.inertia == 0 and back.history[0]["step"] == "quasi-newton"
+    assert back.success and back.inertia == 0
     assert back.fun == pytest.approx(first.fun, rel=1e-12)
     assert_kkt(energy, volume, back, 0.9 * V0)
     assert tangent_inertia_dense(energy, volume, back.x) == 0
     if _load_mkl() is not None:  # PARDISO keeps two factorizations: no new one at all
+        assert back.history[0]["step"] == "quasi-newton"  # on the held one (QDLDL: stale)
         assert solver.counts["double"] == n_double and solver.counts["single"] == n_single
         assert back.factorization is tok
 

@@ -195,13 +195,23 @@ def check_threads(threads) -> int:
 
 @functools.lru_cache(maxsize=None)
 def _load_mkl():
-    """The MKL runtime library (``libmkl_rt``) through ctypes, or ``None``."""
+    """The MKL runtime library (``libmkl_rt``) through ctypes, or ``None``.
+
+    Looked for in ``$SHELLBUCKLE_MKL_RT`` (a path or library name), then by
+    ``ctypes.util.find_library("mkl_rt")``, then in the ``lib`` (``Library/bin`` on Windows)
+    folder of the Python prefix. ``SHELLBUCKLE_NO_MKL=1`` (any value but empty or ``0``) gives
+    ``None`` even where MKL is installed, so that ``"auto"`` picks QDLDL as on a machine without
+    MKL (e.g. ARM) and PARDISO is unavailable. The result is cached for the process: set either
+    variable before the first call (in practice, before the first solve).
+    """
     import ctypes
     import ctypes.util
     import glob
     import os
     import sys
 
+    if os.environ.get("SHELLBUCKLE_NO_MKL", "").strip() not in ("", "0"):
+        return None
     names = [os.environ.get("SHELLBUCKLE_MKL_RT"), ctypes.util.find_library("mkl_rt")]
     for prefix in {sys.prefix, sys.base_prefix}:
         names += sorted(glob.glob(os.path.join(prefix, "lib", "libmkl_rt.so*")), key=len)
