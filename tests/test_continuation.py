@@ -209,7 +209,7 @@ def test_a_step_not_in_the_run_is_refused(parent, tmp_path):
 
 
 @pytest.mark.parametrize("argv, fragment", [
-    (["--gamma", "-3", "--increments", "2"], "positive"),
+    (["--gamma", "-3", "--increments", "2"], "--gamma -3: allowed: a number in [1, 1e11]"),
     (["--gamma", "500"], "increments"),
     (["--gamma", "300:500", "--increments", "2"], "starts at"),
     (["--gamma", "abc", "--increments", "2"], "must be a number"),

@@ -29,6 +29,11 @@ from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
 
+#: The largest shift tried, relative to the largest diagonal entry of the Hessian: beyond it the
+#: step would be a vanishing gradient step, and a matrix that no such shift makes positive
+#: definite holds non-finite or absurd entries (a state far outside the physical domain).
+MAX_SHIFT = 1e12
+
 
 def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float = 1e-8,
                          atol_grad: float = 1e-10, max_iter: int = 200, solver=None,
@@ -59,13 +64,22 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
         g[np.setdiff1d(np.arange(n), free)] = 0.0
         gnorm = float(np.linalg.norm(g))
         H = (energy.hessian(X) + p * volume.hessian(X)).tocsr()[free][:, free]
-        linsolver.factor(H)
-        inertia = linsolver.inertia()[1]
+        try:
+            linsolver.factor(H)
+            inertia = linsolver.inertia()[1]
+        except SingularFactorError:  # a zero or non-finite pivot: shifted as if indefinite
+            inertia = None
         if gnorm <= tol_grad * np.linalg.norm(gE) + atol_grad and inertia == 0:
             success, message, nit = True, "converged", nit - 1
             break
-        shift = 0.0 if inertia == 0 else max(mu / 3.0, 1e-8 * abs(H.diagonal()).max())
+        scale = float(abs(H.diagonal()).max()) if H.shape[0] else 0.0
+        shift = 0.0 if inertia == 0 else max(mu / 3.0, 1e-8 * scale)
+        if not np.isfinite(shift):
+            message = "the Hessian is not finite"
+            break
         while shift > 0.0:
+            if not np.isfinite(shift) or shift > MAX_SHIFT * max(scale, 1.0):
+                break
             try:
                 linsolver.factor(H + shift * sp.eye(H.shape[0], format="csr"))
                 if linsolver.inertia()[1] == 0:
@@ -73,6 +87,9 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
             except SingularFactorError:
                 pass
             shift *= 8.0
+        if shift > 0.0 and not (np.isfinite(shift) and shift <= MAX_SHIFT * max(scale, 1.0)):
+            message = "no shift of the Hessian makes it positive definite"
+            break
         mu = shift
         step = np.zeros(n)
         step[free] = -linsolver.solve(g[free])
