@@ -77,9 +77,8 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
         if not np.isfinite(shift):
             message = "the Hessian is not finite"
             break
-        while shift > 0.0:
-            if not np.isfinite(shift) or shift > MAX_SHIFT * max(scale, 1.0):
-                break
+        limit = MAX_SHIFT * max(scale, 1.0)
+        while 0.0 < shift <= limit:
             try:
                 linsolver.factor(H + shift * sp.eye(H.shape[0], format="csr"))
                 if linsolver.inertia()[1] == 0:
@@ -87,7 +86,7 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
             except SingularFactorError:
                 pass
             shift *= 8.0
-        if shift > 0.0 and not (np.isfinite(shift) and shift <= MAX_SHIFT * max(scale, 1.0)):
+        if shift > limit:
             message = "no shift of the Hessian makes it positive definite"
             break
         mu = shift
