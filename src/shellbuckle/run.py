@@ -29,6 +29,7 @@ from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .solve.linear import check_mode, check_threads, default_threads
+from .store.located import LOCATE_TOL
 from .store.run import RunStore
 from .store.view import Run
 
@@ -54,7 +55,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             c0: float | None = None, prerelax: bool = True, direct_return: bool = True,
             out=None,
             progress: bool = False, max_steps: int | None = None,
-            form_factors=None, pressures=None, threads: int | None = None) -> Run:
+            form_factors=None, pressures=None, threads: int | None = None,
+            locate: bool = True, locate_tol: float = LOCATE_TOL) -> Run:
     """Deflate a shell with the paper's protocol and store every step in ``out``.
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
@@ -76,6 +78,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``direct_return``: after the zero-curvature cycle the last minimization starts at the
     minimum before the cycle when the way there is downhill (see
     :func:`~shellbuckle.protocol.deflate.downhill_path`); off, always at the flat minimum.
+    ``locate``: when the run has finished, locate its buckling events by bisection in volume
+    to ``locate_tol`` in dV/V (:mod:`shellbuckle.locate`; stored in ``located.json``, the
+    steps unchanged).
     ``threads``: threads of the sparse factorization (default: the cores this process may
     use). On one thread PARDISO runs in its plain mode, on several in its reproducible mode,
     which gives the same bits on any number of threads; the plain mode is 6-10 % faster and
@@ -112,12 +117,15 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                                 extra_meta={SOLVER_MODE: solver_mode(threads)})
         return store, mesh, params, protocol
 
-    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
+                  locate=locate_tol if locate else None)
 
 
 def resume(path, *, progress: bool = False, max_steps: int | None = None,
-           threads: int | None = None) -> Run:
-    """Continue a stored run from its last finished step (``threads`` as in :func:`deflate`)."""
+           threads: int | None = None, locate: bool = True,
+           locate_tol: float = LOCATE_TOL) -> Run:
+    """Continue a stored run from its last finished step (``threads``, ``locate`` and
+    ``locate_tol`` as in :func:`deflate`)."""
     if threads is not None:
         threads = check_threads(threads)
     def setup():
@@ -126,7 +134,8 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
         protocol = Protocol.from_dict(store.protocol)
         return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
-    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
+                  locate=locate_tol if locate else None)
 
 
 def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
@@ -295,13 +304,14 @@ def solver_mode(threads: int | None) -> str:
 
 
 def _drive(setup, *, progress: bool, max_steps: int | None = None,
-           threads: int | None = None) -> Run:
+           threads: int | None = None, locate: float | None = None) -> Run:
     """Run a protocol into a store from its last step; ``setup()`` opens the store and gives
     ``(store, mesh, params, protocol)``. The store's status tells how the run ended: finished,
     paused (``max_steps``), failed (an error, or a step that left the physical domain,
     :class:`~shellbuckle.protocol.deflate.LeftDomain`, which is not stored) or interrupted
     (Ctrl-C or SIGTERM, wherever it arrived: see :class:`_Interrupts` and
-    :func:`interrupt_of`)."""
+    :func:`interrupt_of`). A finished run's events are then located to the tolerance
+    ``locate`` (None: not located), :func:`_locate`."""
     interrupts = _Interrupts()
     try:
         store, mesh, params, protocol = setup()
@@ -330,7 +340,28 @@ def _drive(setup, *, progress: bool, max_steps: int | None = None,
         raise interrupt from exc
     interrupts.restore()
     store.close()
-    return Run(RunStore.open(store.path))
+    run = Run(RunStore.open(store.path))
+    if locate is not None and run.status == "finished":
+        _locate(run, locate, threads, progress)
+    return run
+
+
+def _locate(run: Run, tol: float, threads: int | None, progress: bool) -> None:
+    """Locate the finished run's events (:func:`shellbuckle.locate.locate`). The run stands
+    whatever happens here: a failure is logged (``shellbuckle locate DIR`` tries again); an
+    interrupt leaves the events located so far and is raised."""
+    from .locate import locatable, locate
+
+    if locatable(run) is not None:
+        return
+    if progress:
+        print(f"locating the buckling events of {run.path} to dV/V ± {tol / 2:.0e} "
+              "(--no-locate skips it)", flush=True)
+    try:
+        locate(run, tol=tol, threads=threads)
+    except Exception as exc:  # noqa: BLE001 - the run is finished and stored
+        log.warning("the run is finished, but its events could not be located: %s: %s; "
+                    "`shellbuckle locate %s` tries again", type(exc).__name__, exc, run.path)
 
 
 class _Interrupts:

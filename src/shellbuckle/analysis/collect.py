@@ -34,8 +34,10 @@ COLUMNS = ("path", "name", "parent", "gamma", "nu", "energy_convention", "seed",
            "mesh", "jiggle",
            "temperature", "c0_cycle", "method", "bending", "control", "dv", "until", "status",
            "message", "n_steps", "stop_dV_over_V", "stop_reason", "primary_dV_over_V",
-           "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
-           "W_std", "W_steps", "final_shape", "analysis", "converged_fraction", "wall_s")
+           "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
+           "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
+           "located", "W_mean", "W_std", "W_steps", "final_shape", "analysis",
+           "converged_fraction", "wall_s")
 #: Runs whose minimizations converged at fewer steps than this are quenches, not deflations.
 MIN_CONVERGED_FRACTION = 0.5
 #: The thresholds of Fig. 10 (column ``<name>_dV_over_V``).
@@ -151,7 +153,8 @@ def _schedule_numbers(protocol: dict) -> tuple[float, float]:
     return float(np.median(np.abs(steps))), float(schedule[-1])
 
 
-def collect_run(folder, *, store_analysis: bool = False) -> tuple[dict, pd.DataFrame]:
+def collect_run(folder, *, store_analysis: bool = False,
+                located: bool = True) -> tuple[dict, pd.DataFrame]:
     """The :func:`collect_runs` row of one run folder, and its analysed table."""
     from ..run import Run
     from ..store.catalogue import stop_reason
@@ -187,24 +190,29 @@ def collect_run(folder, *, store_analysis: bool = False) -> tuple[dict, pd.DataF
                final_shape=str(table["shape"].iloc[-1]),
                wall_s=float(np.nansum(table["wall_s"].to_numpy(dtype=float))))
     found = {}
-    for e in events(run, table=table):
+    for e in events(run, table=table, located=located):
         found.setdefault(e.name, e)
     if "primary_buckling" in found:
         row.update(primary_dV_over_V=found["primary_buckling"].dV_over_V,
-                   primary_confirmed=found["primary_buckling"].confirmed)
+                   primary_confirmed=found["primary_buckling"].confirmed,
+                   primary_resolution=found["primary_buckling"].resolution)
     for name in ("axisymmetry_loss", "wrinkles"):
         if name in found:
             row[f"{name}_dV_over_V"] = found[name].dV_over_V
+            row[f"{name}_resolution"] = found[name].resolution
+    thresholds = [e for e in found.values() if e.name != "inertia_change"]
+    row["located"] = bool(thresholds) and all(e.located for e in thresholds)
     avg = wrinkle_average(table, W_WINDOW)
     row.update(W_mean=avg.mean, W_std=avg.std, W_steps=avg.n)
     return row, table
 
 
 _FLOATS = ("gamma", "nu", "jiggle", "temperature", "dv", "until", "stop_dV_over_V",
-           "primary_dV_over_V", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V", "W_mean",
-           "W_std", "converged_fraction", "wall_s")
+           "primary_dV_over_V", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
+           "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
+           "W_mean", "W_std", "converged_fraction", "wall_s")
 _INTS = ("seed", "n_vertices", "n_steps", "W_steps")
-_BOOLS = ("c0_cycle", "primary_confirmed")
+_BOOLS = ("c0_cycle", "primary_confirmed", "located")
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:
@@ -212,7 +220,7 @@ def _typed(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = None,
-                 progress: bool = False) -> pd.DataFrame:
+                 progress: bool = False, located: bool = True) -> pd.DataFrame:
     """One row per run folder (columns :data:`COLUMNS`).
 
     ``paths``: run folders, sweep folders (the runs of their ``sweep.json`` that have a
@@ -225,7 +233,10 @@ def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = N
     last step), ``stop_reason`` (``self-intersection``, ``end of schedule`` or None); the
     thresholds ``primary_dV_over_V`` (with ``primary_confirmed``),
     ``axisymmetry_loss_dV_over_V``, ``wrinkles_dV_over_V`` (NaN where the event did not
-    happen); ``W_mean``, ``W_std``, ``W_steps`` over the wrinkled steps with dV/V in
+    happen; the located values where the run has them, :mod:`shellbuckle.locate`, unless
+    ``located`` is False), each with its ``<name>_resolution`` (the width in dV/V of the
+    interval it lies in: the volume step, or the located bracket) and ``located`` (every
+    threshold of the run located); ``W_mean``, ``W_std``, ``W_steps`` over the wrinkled steps with dV/V in
     [0.53, 0.76]; ``final_shape``; ``analysis`` (``stored``, ``computed``, ``stored now``);
     ``wall_s`` (sum of the step wall times).
 
@@ -240,7 +251,7 @@ def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = N
         iterator = tqdm(folders, unit="run", desc="collect", dynamic_ncols=True)
     rows = []
     for folder in iterator:
-        row, table = collect_run(folder, store_analysis=store_analysis)
+        row, table = collect_run(folder, store_analysis=store_analysis, located=located)
         rows.append(row)
         if tables is not None:
             tables[row["path"]] = table
@@ -299,8 +310,10 @@ def threshold_points(df: pd.DataFrame, name: str, *, nu=None) -> pd.DataFrame:
     """Per-gamma statistics of the threshold ``name`` (one of :data:`THRESHOLDS`) over the
     deflation runs (:func:`deflation_runs`) where it happened: columns ``gamma``, ``mean``,
     ``std`` (sample standard deviation over runs, NaN for one run), ``n`` (runs), ``dv``
-    (median volume step) and ``sigma``: ``max(std, dv/sqrt(12))``, the scatter floored at the
-    resolution of a threshold read at discrete volume steps (uniform within one step)."""
+    (median volume step), ``resolution`` (median width of the intervals the thresholds lie
+    in: the volume step, or the bracket of a located threshold) and ``sigma``:
+    ``max(std, resolution/sqrt(12))``, the scatter floored at that resolution (uniform within
+    the interval)."""
     if name not in THRESHOLDS:
         raise ValueError(f"threshold must be one of {', '.join(THRESHOLDS)}, got {name!r}")
     runs = _one_nu(deflation_runs(df), nu)
@@ -312,11 +325,16 @@ def threshold_points(df: pd.DataFrame, name: str, *, nu=None) -> pd.DataFrame:
         std = float(values.std(ddof=1)) if len(values) > 1 else math.nan
         dv = float(np.nanmedian(group["dv"].to_numpy(float))) if group["dv"].notna().any() \
             else math.nan
-        floor = dv / math.sqrt(12.0) if math.isfinite(dv) else 0.0
+        resolution = dv
+        widths = group.get(f"{name}_resolution")
+        if widths is not None and widths.notna().any():
+            resolution = float(np.nanmedian(widths.to_numpy(float)))
+        floor = resolution / math.sqrt(12.0) if math.isfinite(resolution) else 0.0
         rows.append({"gamma": float(gamma), "mean": float(values.mean()), "std": std,
-                     "n": len(values), "dv": dv,
+                     "n": len(values), "dv": dv, "resolution": resolution,
                      "sigma": max(std, floor) if math.isfinite(std) else math.nan})
-    return pd.DataFrame(rows, columns=["gamma", "mean", "std", "n", "dv", "sigma"])
+    return pd.DataFrame(rows, columns=["gamma", "mean", "std", "n", "dv", "resolution",
+                                       "sigma"])
 
 
 def _sigma(points: pd.DataFrame):

@@ -22,11 +22,15 @@ pressure, energies and Hessian inertia:
     step's.
 
 Each event gives the step and its ``dV_over_V`` (the relative volume change reached at that
-step, so the threshold lies between the previous step's value and this one).
+step, so the threshold lies between the previous step's value and this one: its
+``resolution`` is that step). Where the run's threshold events were located by bisection
+(:mod:`shellbuckle.locate`, stored in ``located.json``), ``dV_over_V`` is the located value
+(the middle of the final bracket), ``resolution`` the bracket's width and ``located`` True.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -42,15 +46,18 @@ EVENT_NAMES = ("primary_buckling", "axisymmetry_loss", "wrinkles", "inertia_chan
 
 @dataclass(frozen=True)
 class Event:
-    """One event: ``name`` (one of :data:`EVENT_NAMES`), ``step``, ``dV_over_V`` at that step,
-    ``confirmed`` (primary buckling: whether pressure/energies agree with the shape; None for
-    the others) and a one-line ``description``."""
+    """One event: ``name`` (one of :data:`EVENT_NAMES`), ``step``, ``dV_over_V`` at that step
+    (or located), ``confirmed`` (primary buckling: whether pressure/energies agree with the
+    shape; None for the others), a one-line ``description``, the ``resolution`` (width in dV/V
+    of the interval in which the event lies) and whether it was ``located`` by bisection."""
 
     name: str
     step: int
     dV_over_V: float
     confirmed: bool | None
     description: str
+    resolution: float = math.nan
+    located: bool = False
 
 
 def _table_with_shapes(run, table):
@@ -101,13 +108,14 @@ def _primary_confirmation(table, i: int) -> tuple[bool, str]:
     return False, "no pressure or energies to confirm"
 
 
-def events(run_or_path, table=None) -> list[Event]:
+def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
     """Buckling events of a run (module docstring), in order of step.
 
     ``run_or_path``: a :class:`shellbuckle.run.Run` or a run folder. Uses the stored analysis
     columns when every step has them, and classifies the missing steps otherwise (without
     writing; :func:`shellbuckle.analysis.analyze_run` stores them). ``table`` may be given to
-    avoid re-reading it.
+    avoid re-reading it. ``located``: use the located thresholds stored with the run (those
+    at the same step as found here); False gives the values read at the steps.
     """
     from ..store.view import Run
 
@@ -144,13 +152,40 @@ def events(run_or_path, table=None) -> list[Event]:
             if a >= 0 and b >= 0 and a != b:
                 out.append(Event("inertia_change", int(step[k]), float(dv[k]), None,
                                  f"negative Hessian eigenvalues {int(a)} -> {int(b)}"))
+    out = [_resolved(e, dv, step) for e in out]
+    if located:
+        out = _with_located(out, run)
     out.sort(key=lambda e: (e.step, EVENT_NAMES.index(e.name)))
     return out
 
 
-def thresholds(run_or_path, table=None) -> dict:
+def _resolved(event: Event, dv: np.ndarray, step: np.ndarray) -> Event:
+    """``event`` with its resolution: the volume step that ends at its step."""
+    i = int(np.searchsorted(step, event.step))
+    before = dv[i - 1] if i > 0 else 0.0
+    return dataclasses.replace(event, resolution=float(abs(dv[i] - before)))
+
+
+def _with_located(found: list[Event], run) -> list[Event]:
+    from ..store.located import read_located
+
+    points = read_located(run.path)
+    out = []
+    for e in found:
+        point = points.get(e.name)
+        if point and point.get("step") == e.step and point.get("complete", False):
+            e = dataclasses.replace(
+                e, dV_over_V=float(point["dV_over_V"]), resolution=float(point["hi"] - point["lo"]),
+                located=True, description=f"{e.description}; located at dV/V = "
+                f"{point['dV_over_V']:.5f} ± {point['uncertainty']:.1e} ({point['mechanism']})")
+        out.append(e)
+    return out
+
+
+def thresholds(run_or_path, table=None, *, located: bool = True) -> dict:
     """``{"primary_buckling": dV/V, "axisymmetry_loss": dV/V, "wrinkles": dV/V}`` of a run, NaN
-    for an event that did not happen (the inputs of the paper's Fig. 10)."""
-    found = {e.name: e.dV_over_V for e in events(run_or_path, table)
+    for an event that did not happen (the inputs of the paper's Fig. 10); located values where
+    the run has them, unless ``located`` is False."""
+    found = {e.name: e.dV_over_V for e in events(run_or_path, table, located=located)
              if e.name != "inertia_change"}
     return {name: found.get(name, math.nan) for name in EVENT_NAMES[:3]}

@@ -154,6 +154,8 @@ RANGES = {
                  "1200 dpi is already about 10000 pixels wide (hundreds of MB in memory)"),
     "at": Range(0, 1, high_open=True, reason="a dV/V"),
     "every": Range(1, MAX_STEPS, integer=True, reason="every K-th stored step"),
+    "locate_tol": Range(1e-7, 0.1, reason="a width in dV/V: each halving is one more "
+                        "minimization; below 1e-7 it resolves the minimizer's tolerance"),
 }
 
 

@@ -130,7 +130,8 @@ def _near(gamma_series, gamma, rtol=0.01):
 
 def _seed_fits(runs: pd.DataFrame) -> dict:
     """The primary and secondary fits of one seed's runs, weighted as the fit to all seeds
-    is: each threshold by its resolution dv/sqrt(12) (one run per gamma has no scatter)."""
+    is: each threshold by its resolution/sqrt(12), the volume step or the located bracket
+    (one run per gamma has no scatter)."""
     from ...analysis.collect import threshold_points
     from ...analysis.fits import fit_power_law
 
@@ -140,7 +141,7 @@ def _seed_fits(runs: pd.DataFrame) -> dict:
     for key, pts, exponent in (("primary", points["primary"], None),
                                ("secondary", secondary, -1.0)):
         if len(pts) >= (1 if exponent is not None else 2):
-            floor = pts["dv"].to_numpy(float) / math.sqrt(12.0)
+            floor = pts["resolution"].to_numpy(float) / math.sqrt(12.0)
             fits[key] = fit_power_law(pts["gamma"], pts["mean"], sigma=floor,
                                       exponent=exponent)
     return fits

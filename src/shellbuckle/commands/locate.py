@@ -1,0 +1,67 @@
+"""``shellbuckle locate DIR [--tol T] [--again]``: the buckling events of a run located by
+bisection in volume (:mod:`shellbuckle.locate`)."""
+
+from __future__ import annotations
+
+from ._checks import add_command, add_number, run_folder
+from ._options import add_threads_option
+
+
+def register(sub) -> None:
+    parser = add_command(
+        sub, "locate", help="locate a run's buckling events between its volume steps",
+        description="Locate the primary buckling, the loss of axisymmetry and the onset of "
+                    "wrinkles of the deflation run in DIR by bisection in volume between the "
+                    "two stored steps around each: from the last state of the old branch, the "
+                    "protocol's step (same jiggle, minimizations and zero-curvature cycle) is "
+                    "made to the middle volume and classified, until the bracket is narrower "
+                    "than --tol. The located points (volume, energies, pressure, the lowest "
+                    "eigenvalue of the constrained Hessian on both sides, the mechanism) are "
+                    "stored in DIR/located.json; the steps and the table are not changed. "
+                    "Thresholds, fits and Fig. 10 then use them. `deflate` does this at the "
+                    "end of every finished run unless --no-locate.")
+    parser.add_argument("dir", metavar="DIR", help="run folder")
+    add_number(parser, "--tol", "locate_tol", "width in dV/V of the final bracket "
+               "(default 1e-4)", default=None, metavar="T")
+    parser.add_argument("--again", action="store_true",
+                        help="locate again events already located to --tol")
+    parser.add_argument("--json", action="store_true", help="print the located points as JSON")
+    add_threads_option(parser)
+    parser.set_defaults(func=_cmd)
+
+
+def _cmd(args) -> int:
+    from ..locate import DEFAULT_TOL, locatable, locate
+
+    run = run_folder("DIR", args.dir)
+    why = locatable(run)
+    if why is not None:
+        raise ValueError(f"DIR {args.dir}: its events cannot be located: {why}")
+    points = locate(run, tol=DEFAULT_TOL if args.tol is None else args.tol,
+                    threads=args.threads, again=args.again)
+    if args.json:
+        from ._output import print_json
+
+        return print_json(points, indent=1)
+    print_located(run, points)
+    return 0
+
+
+def print_located(run, points: dict) -> None:
+    """One line per located event: the step reading, the located value and the mechanism."""
+    if not points:
+        print(f"{run.path}: no buckling event to locate (the run stays a sphere)")
+        return
+    print(f"{run.path}: located events (dV/V; the steps read it between the previous step and "
+          "the one given)")
+    for name, p in sorted(points.items(), key=lambda item: item[1]["lo"]):
+        old, new = p["old"], p["new"]
+        line = (f"  {name:<17} step {p['step']:>3} (dV/V {p['step_dV_over_V']:.4f}) -> "
+                f"{p['dV_over_V']:.5f} ± {p['uncertainty']:.1e}   {old['shape']} -> "
+                f"{new['shape']}, E/kappa {old['E_over_kappa']:.5g} -> {new['E_over_kappa']:.5g}, "
+                f"p {old['pressure']:.5g} -> {new['pressure']:.5g}; lowest eigenvalue "
+                f"{old['lowest_eigenvalue']:.3g} -> {new['lowest_eigenvalue']:.3g} "
+                f"({p['mechanism']})")
+        if not p.get("complete", True):
+            line += f"; incomplete: {p['failure']}"
+        print(line)

@@ -1,0 +1,246 @@
+"""Located bifurcations: the volume of a buckling event to a set tolerance, by bisection.
+
+The paper's protocol (Quilliet et al., EPJE 27, 13 (2008), §4.1) sees a transition only at its
+volume steps (dV/V = 0.019): the primary buckling of a thin shell lies somewhere between the
+sphere and the first step. Here each threshold event of a deflation run (the primary buckling,
+the loss of axisymmetry and the onset of wrinkles of :mod:`shellbuckle.analysis.events`) found
+at step ``k`` is located between the stored steps ``k - 1`` and ``k`` by bisection in volume:
+
+1. the bracket is ``[lo, hi] = [dV/V of step k - 1, dV/V of step k]``; the state at ``lo`` is
+   the last state of the old branch, the stored conformation of step ``k - 1``;
+2. at ``mid = (lo + hi) / 2`` the protocol's step is made from the state at ``lo`` exactly as
+   the run made step ``k`` (the same jiggle, drawn from the step's seeded stream and scaled to
+   the step, the same minimizations and zero-curvature cycle), only to the volume ``mid``: the
+   state the paper's protocol would reach there from the old branch;
+3. the result is classified (:func:`shellbuckle.analysis.classify.classify`); if it shows the
+   event (``sphere -> not sphere``, a rim ``polygonal`` or ``wrinkled``, ``wrinkled``) the
+   bracket becomes ``[lo, mid]``, else ``[mid, hi]`` and the state at ``mid`` becomes the last
+   state of the old branch;
+4. until ``hi - lo <= tol`` (default ``1e-4``: eight evaluations for the paper's step).
+
+The located threshold is the bracket's middle, with an uncertainty of half its width. Stored
+with it (:mod:`shellbuckle.store.located`) are both ends' energies, pressures and shapes, each
+evaluation, and the lowest eigenvalue of the constrained Hessian (:mod:`shellbuckle.solve.spectrum`)
+at the start of the bracket and at both ends, which tells the mechanism: an *instability* when
+that eigenvalue on the old branch, extrapolated linearly in volume, reaches zero within the
+original step after the located point (a fold or bifurcation of the branch: Thompson & Hunt,
+*A General Theory of Elastic Stability*, 1973), else a *barrier crossing*: the old branch is
+still a proper minimum and the step's jiggle carries the shell over the energy barrier to a
+lower branch, as in the paper's runs, between the energy crossing of the two branches and the
+classical threshold.
+
+The location is a refinement of the run: the table and the stored steps are not changed, and a
+run located or not has the same steps. It assumes the event is monotone in volume within one
+step (the old branch gives way once); the evaluations are stored so that this can be checked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from .analysis.classify import ANALYSIS_VERSION, classify
+from .analysis.events import events as run_events
+from .mesh.mesh import Mesh
+from .params import ShellParameters
+from .protocol import deflate as protocol_mod
+from .protocol.deflate import LeftDomain, Protocol
+from .solve.spectrum import lowest_eigenvalues
+from .store.located import LOCATE_TOL, read_located, write_located
+from .store.view import Run
+
+log = logging.getLogger(__name__)
+
+#: Default tolerance of a located threshold, in dV/V (the bracket's final width).
+DEFAULT_TOL = LOCATE_TOL
+#: Smallest tolerance: below it the bisection would resolve the minimizer's tolerance.
+MIN_TOL = 1e-7
+
+#: The events located, and what each looks for in a classified conformation.
+EVENT_SHAPES: dict[str, Callable[[str], bool]] = {
+    "primary_buckling": lambda shape: shape != "sphere",
+    "axisymmetry_loss": lambda shape: shape in ("polygonal", "wrinkled"),
+    "wrinkles": lambda shape: shape == "wrinkled",
+}
+LOCATED_EVENTS = tuple(EVENT_SHAPES)
+
+
+def check_tol(tol: float) -> float:
+    """``tol`` as a float in ``[MIN_TOL, 0.1]`` (ValueError otherwise)."""
+    tol = float(tol)
+    if not (math.isfinite(tol) and MIN_TOL <= tol <= 0.1):
+        raise ValueError(f"the location tolerance must be in [{MIN_TOL:g}, 0.1] (in dV/V), "
+                         f"got {tol!r}")
+    return tol
+
+
+def locatable(run: Run) -> str | None:
+    """Why the events of ``run`` cannot be located (None if they can): only deflations under
+    volume control, with a rising schedule, are."""
+    protocol = run.protocol
+    if protocol.control != "volume":
+        return f"a {protocol.control}-controlled run (only volume-controlled deflations are)"
+    if len(protocol.schedule) and np.any(np.diff((0.0,) + protocol.schedule) <= 0):
+        return "its volume schedule does not rise (a re-inflation)"
+    return None
+
+
+def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
+           threads: int | None = None, again: bool = False) -> dict[str, dict]:
+    """Locate the threshold events ``names`` of a stored deflation run and store them.
+
+    Returns ``{name: point}`` for every event of ``names`` that the run shows (module
+    docstring; the keys of a point are those of :func:`_point`). An event already located in
+    the folder at the same step, analysis version and a tolerance at least as fine is kept
+    unless ``again``. ``threads`` as in :func:`shellbuckle.run.deflate`; the run's PARDISO mode
+    is used, so the location is reproducible. A run that cannot be located
+    (:func:`locatable`) gives ``{}``.
+    """
+    tol = check_tol(tol)
+    run = Run.of(run_or_path)
+    why = locatable(run)
+    if why is not None:
+        log.info("%s: events not located: %s", run.path, why)
+        return {}
+    found = {e.name: e for e in run_events(run, located=False) if e.name in names}
+    stored = {} if again else read_located(run.path)
+    out, todo = {}, []
+    for name, event in found.items():
+        point = stored.get(name)
+        if (point and point.get("step") == event.step and point.get("tol", 1.0) <= tol * 1.000001
+                and point.get("analysis_version") == ANALYSIS_VERSION):
+            out[name] = point
+        else:
+            todo.append(event)
+    if not todo:
+        return out
+    ctx = _context(run, threads)
+    for event in sorted(todo, key=lambda e: e.step):
+        point = _locate_event(ctx, run, event, tol)
+        write_located(run.path, {event.name: point})
+        out[event.name] = point
+    return out
+
+
+def located(run_or_path) -> dict[str, dict]:
+    """The located points stored with a run, ``{name: point}`` (empty if none)."""
+    return read_located(Run.of(run_or_path).path)
+
+
+def _context(run: Run, threads):
+    store = run.store
+    mode = store.meta.get("extra", {}).get("pardiso_mode", "reproducible")
+    if mode == "plain":
+        threads = 1
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    params = ShellParameters.from_dict(store.params)
+    protocol = Protocol.from_dict(store.protocol)
+    ctx, _ = protocol_mod.init(mesh, params, protocol, form_factors=store.rest.get("form_factors"),
+                               threads=threads, reproducible=mode == "reproducible")
+    return ctx
+
+
+def _target(run: Run, k: int) -> float:
+    return 0.0 if k == 0 else float(run.protocol.schedule[k - 1])
+
+
+def _side(ctx, X, record: dict, shape: str) -> dict:
+    keys = ("dV_over_V", "E_total", "E_bend", "E_stretch", "E_over_kappa", "pressure",
+            "grad_norm", "converged", "inertia")
+    side = {key: record.get(key) for key in keys}
+    side["shape"] = shape
+    side["lowest_eigenvalue"] = _lowest(ctx, X)
+    return side
+
+
+def _lowest(ctx, X) -> float:
+    try:
+        return float(lowest_eigenvalues(ctx.energy, ctx.volume, X, ctx.pinned, k=1)[0])
+    except Exception as exc:  # a singular matrix or ARPACK not converging: say so, go on
+        log.warning("lowest eigenvalue not found (%s)", exc)
+        return math.nan
+
+
+def _locate_event(ctx, run: Run, event, tol: float) -> dict:
+    """Bisection of one event (module docstring)."""
+    t0 = time.perf_counter()
+    k = event.step
+    wanted = EVENT_SHAPES[event.name]
+    lo, hi = _target(run, k - 1), _target(run, k)
+    table = run.table.set_index("step")
+    X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
+    X_hi, rec_hi = run.positions(k), run.store.record(k)
+    shape_lo = str(table.loc[k - 1, "shape"]) if "shape" in table else classify(X_lo, run.faces).shape
+    shape_hi = str(table.loc[k, "shape"]) if "shape" in table else classify(X_hi, run.faces).shape
+    lowest_start = _lowest(ctx, X_lo)
+    lo_start = lo
+    # the old branch one stored step earlier, for the eigenvalue's trend if lo does not move
+    lowest_before = _lowest(ctx, run.positions(k - 2)) if k >= 2 else math.nan
+    protocol = ctx.protocol
+    evaluations, failure = [], None
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        schedule = list(protocol.schedule)
+        schedule[k - 1] = mid
+        at_mid = dataclasses.replace(ctx, protocol=dataclasses.replace(protocol,
+                                                                       schedule=tuple(schedule)))
+        state = protocol_mod.state_after(k - 1, X_lo, rec_lo)
+        try:
+            state, record = protocol_mod.step(at_mid, state)
+        except LeftDomain as exc:
+            failure = f"the step to dV/V = {mid:.6f} left the physical domain: {exc.reason}"
+            log.warning("%s: %s; %s located to [%.6f, %.6f] only", run.path, failure,
+                        event.name, lo, hi)
+            break
+        shape = classify(state.X, run.faces).shape
+        shows = wanted(shape)
+        evaluations.append({"dV_over_V": mid, "shape": shape, "shows_event": shows,
+                            "E_total": record["E_total"], "pressure": record["pressure"],
+                            "converged": record["converged"]})
+        log.info("%s %s: dV/V = %.6f gives %s (%s)", run.path.name, event.name, mid, shape,
+                 "the event" if shows else "the old branch")
+        if shows:
+            hi, X_hi, rec_hi, shape_hi = mid, state.X, record, shape
+        else:
+            lo, X_lo, rec_lo, shape_lo = mid, state.X, record, shape
+    old = _side(ctx, X_lo, rec_lo, shape_lo)
+    new = _side(ctx, X_hi, rec_hi, shape_hi)
+    if lo > lo_start:
+        trend = (lo_start, lowest_start, lo, old["lowest_eigenvalue"])
+    else:
+        trend = (_target(run, k - 2) if k >= 2 else math.nan, lowest_before, lo, lowest_start)
+    mechanism, zero_at = _mechanism(*trend, _target(run, k) - lo_start)
+    return {
+        "step": k, "tol": tol, "analysis_version": ANALYSIS_VERSION,
+        "dV_over_V": 0.5 * (lo + hi), "uncertainty": 0.5 * (hi - lo), "lo": lo, "hi": hi,
+        "step_dV_over_V": event.dV_over_V, "old": old, "new": new,
+        "lowest_eigenvalue_start": lowest_start, "lowest_eigenvalue_before": lowest_before,
+        "mechanism": mechanism,
+        "eigenvalue_zero_at": zero_at, "evaluations": evaluations,
+        "complete": failure is None, "failure": failure,
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
+def _mechanism(v_start: float, lowest_start: float, v_old: float, lowest_old: float,
+               step: float) -> tuple[str, float | None]:
+    """``("instability", v0)`` when the old branch's lowest eigenvalue, extrapolated linearly
+    from ``v_start`` (the bracket's start, or the stored step before it when the bracket's
+    lower end did not move) to its last old state ``v_old``, reaches zero at ``v0`` within
+    ``step`` after that state; ``("barrier crossing", v0 or None)`` otherwise;
+    ``("undetermined", None)`` without two old states or eigenvalues."""
+    if not (math.isfinite(v_start) and math.isfinite(lowest_start)
+            and math.isfinite(lowest_old)) or v_old <= v_start:
+        return "undetermined", None
+    if lowest_old <= 0:
+        return "instability", v_old
+    slope = (lowest_old - lowest_start) / (v_old - v_start)
+    if slope >= 0:
+        return "barrier crossing", None
+    zero_at = v_old - lowest_old / slope
+    return ("instability" if zero_at - v_old <= step else "barrier crossing"), float(zero_at)

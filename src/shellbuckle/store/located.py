@@ -1,0 +1,80 @@
+"""Located transitions of a run: ``located.json`` in the run folder.
+
+A refinement of the run, not part of its protocol: the volume at which each buckling event
+happens, found by bisection between two stored steps (:mod:`shellbuckle.locate`). The table
+and the steps are never changed by it. The file maps an event name to its located point::
+
+    {"version": 1,
+     "events": {"primary_buckling": {"step": 3, "tol": 1e-4, "lo": ..., "hi": ...,
+                                     "dV_over_V": ..., "uncertainty": ..., "old": {...},
+                                     "new": {...}, "evaluations": [...], ...}, ...}}
+
+It is replaced atomically under its own lock, one event at a time, so an interrupted location
+keeps the events already located. A file that cannot be read is reported and treated as absent
+(the location can be made again: it is derived from the stored steps).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+
+from ..util import json_safe
+from .atomic import FileLock, atomic_write_bytes, remove_temporaries
+
+log = logging.getLogger(__name__)
+
+LOCATED_JSON, LOCATED_LOCK = "located.json", ".located.lock"
+LOCATED_VERSION = 1
+#: Default tolerance of a located event, in dV/V (the final bracket's width).
+LOCATE_TOL = 1e-4
+
+
+def read_located(folder) -> dict[str, dict]:
+    """The located events of the run in ``folder``, ``{name: point}`` (empty if none, or if
+    the file is damaged: a warning says so)."""
+    path = Path(folder) / LOCATED_JSON
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return {}
+    try:
+        data = json.loads(text)
+        if data.get("version") != LOCATED_VERSION or not isinstance(data.get("events"), dict):
+            raise ValueError(f"version {data.get('version')!r}, expected {LOCATED_VERSION}")
+        return dict(data["events"])
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, ValueError) as exc:
+        log.warning("%s cannot be read (%s): the located events are ignored; "
+                    "`shellbuckle locate %s` locates them again", path, exc, Path(folder))
+        return {}
+
+
+def write_located(folder, events: Mapping[str, Mapping]) -> None:
+    """Add or replace the located points ``{name: point}`` of the run in ``folder``."""
+    folder = Path(folder)
+    lock = FileLock(folder / LOCATED_LOCK)
+    lock.acquire(blocking=True)
+    try:
+        remove_temporaries(folder, {LOCATED_JSON})
+        merged = read_located(folder) | {name: dict(point) for name, point in events.items()}
+        text = json.dumps(json_safe({"version": LOCATED_VERSION, "events": merged}), indent=1,
+                          allow_nan=False)
+        atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
+    finally:
+        lock.release()
+
+
+def remove_located(folder, names=None) -> None:
+    """Forget the located points ``names`` (all when None) of the run in ``folder``."""
+    folder = Path(folder)
+    lock = FileLock(folder / LOCATED_LOCK)
+    lock.acquire(blocking=True)
+    try:
+        kept = {} if names is None else {n: p for n, p in read_located(folder).items()
+                                         if n not in set(names)}
+        text = json.dumps({"version": LOCATED_VERSION, "events": kept}, indent=1)
+        atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
+    finally:
+        lock.release()

@@ -1,0 +1,172 @@
+"""Located bifurcations: the lowest eigenvalue of the constrained Hessian against a dense
+computation, and the primary buckling of a gamma = 271 icosphere located by bisection within
+its tolerance, between the energy crossing and the classical threshold, on the old branch."""
+
+import json
+
+import numpy as np
+import pytest
+import scipy.linalg as la
+
+from shellbuckle import theory
+from shellbuckle.analysis.collect import collect_runs, threshold_points
+from shellbuckle.analysis.events import events, thresholds
+from shellbuckle.cli import main
+from shellbuckle.locate import _mechanism, located, locate
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.protocol import deflate as protocol_mod
+from shellbuckle.run import deflate
+from shellbuckle.solve.gauge import free_dofs
+from shellbuckle.solve.spectrum import lowest_eigenvalues, multiplier
+from shellbuckle.store.located import LOCATED_JSON
+
+GAMMA = 271.0
+TOL = 1e-4
+
+
+@pytest.fixture(scope="module")
+def params():
+    return ShellParameters.from_gamma(GAMMA, nu=1 / 3)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, params):
+    """The same deflation without and with location (a small jiggle: the sphere branch holds
+    part of the way into the bracket, so the bisection moves both ends)."""
+    base = tmp_path_factory.mktemp("locate")
+    kwargs = dict(until=0.22, temperature=0.01, seed=0, threads=1)
+    plain = deflate(icosphere(8), params, out=base / "plain", locate=False, **kwargs)
+    found = deflate(icosphere(8), params, out=base / "located", locate_tol=TOL, **kwargs)
+    return plain, found
+
+
+def test_lowest_eigenvalues_equal_the_dense_constrained_spectrum(params):
+    mesh = icosphere(4)
+    ctx, state = protocol_mod.init(mesh, params, protocol_mod.Protocol.paper(until=0.1),
+                                   threads=1)
+    state, record = protocol_mod.step(ctx, state)
+    X = state.X
+    free = free_dofs(X.size, ctx.pinned)
+    lam = multiplier(ctx.energy, ctx.volume, X, free)
+    assert lam == pytest.approx(-record["pressure"], rel=1e-6)
+    K = sum(ctx.energy.hessian_terms(X)) - lam * ctx.volume.hessian(X)
+    K = K.toarray()[np.ix_(free, free)]
+    tangent = la.null_space(ctx.volume.gradient(X).ravel()[free][None, :])
+    dense = la.eigvalsh(tangent.T @ K @ tangent)[:3]
+    assert lowest_eigenvalues(ctx.energy, ctx.volume, X, ctx.pinned, k=3) == \
+        pytest.approx(dense, rel=1e-8, abs=1e-10)
+
+
+def test_primary_buckling_is_located_within_tol_between_crossing_and_classical(runs, params):
+    _, run = runs
+    points = located(run)
+    assert set(points) == {"primary_buckling"}
+    p = points["primary_buckling"]
+    k = p["step"]
+    table = run.table.set_index("step")
+    assert table.loc[k - 1, "dV_over_V"] <= p["lo"] < p["hi"] <= table.loc[k, "dV_over_V"]
+    assert p["hi"] - p["lo"] <= TOL
+    assert p["complete"] and p["lo"] < p["dV_over_V"] < p["hi"]
+    assert p["uncertainty"] == pytest.approx((p["hi"] - p["lo"]) / 2)
+    assert p["old"]["shape"] == "sphere" and p["new"]["shape"] != "sphere"
+    assert theory.crossing(params) < p["lo"]
+    assert p["hi"] < theory.classical_threshold(params).dV_over_V_exact
+    # every evaluation is consistent with the final bracket (one jump, at the located point)
+    for e in p["evaluations"]:
+        assert e["shows_event"] == (e["dV_over_V"] >= p["hi"])
+    # the old branch is a proper minimum there: a barrier is crossed, no eigenvalue vanishes
+    assert p["old"]["lowest_eigenvalue"] > 0 and p["old"]["inertia"] == 0
+    assert p["mechanism"] == "barrier crossing"
+
+
+def test_located_point_lies_on_the_old_branch(runs):
+    """The energy and pressure of the last old state follow the sphere branch of the stored
+    steps (a quadratic through the three steps before the bracket, extrapolated into it)."""
+    _, run = runs
+    p = located(run)["primary_buckling"]
+    assert p["lo"] > run.table.set_index("step").loc[p["step"] - 1, "dV_over_V"]  # moved
+    before = run.table[run.table["step"].between(p["step"] - 3, p["step"] - 1)]
+    dv = before["dV_over_V"].to_numpy()
+    for column, key in (("E_total", "E_total"), ("pressure", "pressure")):
+        fit = np.polyfit(dv, before[column].to_numpy(), 2)
+        assert p["old"][key] == pytest.approx(np.polyval(fit, p["lo"]), rel=1e-3)
+    # and the new branch is far below it in pressure (the snap-through)
+    assert p["new"]["pressure"] < 0.6 * p["old"]["pressure"]
+
+
+def test_a_run_not_located_has_the_same_table(runs):
+    plain, found = runs
+    assert not (plain.path / LOCATED_JSON).exists() and (found.path / LOCATED_JSON).exists()
+    a, b = plain.table.drop(columns="wall_s"), found.table.drop(columns="wall_s")
+    assert a.equals(b)
+    assert (plain.positions(-1) == found.positions(-1)).all()
+
+
+def test_thresholds_and_collect_use_located_values(runs):
+    plain, found = runs
+    p = located(found)["primary_buckling"]
+    stepped = {e.name: e for e in events(found, located=False)}["primary_buckling"]
+    assert stepped.dV_over_V == found.table.set_index("step").loc[p["step"], "dV_over_V"]
+    assert thresholds(found)["primary_buckling"] == p["dV_over_V"]
+    assert thresholds(plain)["primary_buckling"] == stepped.dV_over_V
+    df = collect_runs([plain.path, found.path])
+    by_name = df.set_index("name")
+    assert by_name.loc["located", "located"] and not by_name.loc["plain", "located"]
+    assert by_name.loc["located", "primary_resolution"] == pytest.approx(p["hi"] - p["lo"])
+    assert by_name.loc["plain", "primary_resolution"] == pytest.approx(0.019)
+    pts = threshold_points(df[df["name"] == "located"], "primary")
+    assert pts["resolution"].iloc[0] <= TOL
+
+
+def test_location_is_kept_reproducible_and_recovers_from_damage(runs, caplog):
+    _, run = runs
+    first = located(run)
+    again = locate(run, tol=TOL, threads=1, again=True)
+    assert again["primary_buckling"]["dV_over_V"] == first["primary_buckling"]["dV_over_V"]
+    assert again["primary_buckling"]["old"]["E_total"] == first["primary_buckling"]["old"]["E_total"]
+    # a coarser request keeps the finer stored point without any evaluation
+    kept = locate(run, tol=10 * TOL, threads=1)
+    assert kept["primary_buckling"]["wall_s"] == again["primary_buckling"]["wall_s"]
+    (run.path / LOCATED_JSON).write_text("{not json")
+    assert located(run) == {}
+    assert "cannot be read" in caplog.text
+    assert thresholds(run)["primary_buckling"] == events(run, located=False)[0].dV_over_V
+    redone = locate(run, tol=TOL, threads=1)
+    assert redone["primary_buckling"]["dV_over_V"] == first["primary_buckling"]["dV_over_V"]
+    assert json.loads((run.path / LOCATED_JSON).read_text())["version"] == 1
+
+
+def test_locate_command(runs, capsys):
+    _, run = runs
+    assert main(["locate", str(run.path), "--threads", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "primary_buckling" in out and "sphere -> capsule" in out
+    assert main(["locate", str(run.path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["primary_buckling"]["step"] == \
+        located(run)["primary_buckling"]["step"]
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--tol", "0"], "--tol 0: allowed"),
+    (["--tol", "1e-9"], "--tol 1e-9: allowed"),
+    (["--tol", "abc"], "--tol abc: not a number"),
+])
+def test_locate_refuses_bad_tolerances(runs, argv, fragment, capsys):
+    _, run = runs
+    before = (run.path / LOCATED_JSON).read_bytes()
+    assert main(["locate", str(run.path), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0]
+    assert (run.path / LOCATED_JSON).read_bytes() == before
+
+
+def test_mechanism_extrapolates_the_lowest_eigenvalue_linearly():
+    # lambda falls from 1.0 at 0.10 to 0.2 at 0.18: zero at 0.20, within a step of 0.03
+    kind, zero = _mechanism(0.10, 1.0, 0.18, 0.2, 0.03)
+    assert kind == "instability" and zero == pytest.approx(0.20)
+    kind, zero = _mechanism(0.10, 1.0, 0.18, 0.2, 0.01)
+    assert kind == "barrier crossing" and zero == pytest.approx(0.20)
+    assert _mechanism(0.10, 0.5, 0.18, 0.6, 0.03) == ("barrier crossing", None)
+    assert _mechanism(0.18, 0.5, 0.18, 0.6, 0.03) == ("undetermined", None)
+    assert _mechanism(0.10, 0.5, 0.18, -0.1, 0.03) == ("instability", 0.18)
