@@ -7,7 +7,8 @@ import json
 
 def report_run(run, *, plot: bool = False) -> int:
     """Print the run folder, its status and its last step; along a path in gamma or c0 (the
-    run's protocol control) the step's gamma and c0, otherwise its pressure. With ``plot``,
+    run's protocol control) the step's gamma and c0, otherwise its pressure; the located
+    events (:mod:`shellbuckle.locate`) if any. With ``plot``,
     write the run figure (``deflation.png`` in the run folder) and name it. Returns 0."""
     last = run.table.iloc[-1]
     print(f"run folder: {run.path}")
@@ -19,6 +20,13 @@ def report_run(run, *, plot: bool = False) -> int:
     else:
         print(f"steps: {int(last['step'])}, dV/V = {last['dV_over_V']:.4f}, "
               f"E/kappa = {last['E_over_kappa']:.6g}, pressure = {last['pressure']:.6g}")
+    from ..locate import located
+
+    points = located(run)
+    if points:
+        from .locate import print_located
+
+        print_located(run, points)
     if plot:
         from ..plots.run import plot_deflation
 

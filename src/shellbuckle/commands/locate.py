@@ -30,6 +30,27 @@ def register(sub) -> None:
     parser.set_defaults(func=_cmd)
 
 
+def add_locate_options(parser) -> None:
+    """``--no-locate`` and ``--locate-tol`` of the commands that make or extend a deflation."""
+    group = parser.add_argument_group(
+        "located bifurcations (at the end of a finished run; `shellbuckle locate DIR` later)")
+    group.add_argument("--no-locate", action="store_true",
+                       help="do not locate the buckling events between the volume steps")
+    add_number(group, "--locate-tol", "locate_tol", "width in dV/V to which the events are "
+               "located (default 1e-4)", default=None, metavar="T")
+
+
+def locate_arguments(args) -> dict:
+    """The ``locate``/``locate_tol`` arguments of :func:`shellbuckle.run.deflate`."""
+    from ..locate import DEFAULT_TOL
+
+    if args.no_locate and args.locate_tol is not None:
+        raise ValueError(f"--locate-tol {args.locate_tol:g}: cannot be combined with "
+                         "--no-locate")
+    return {"locate": not args.no_locate,
+            "locate_tol": DEFAULT_TOL if args.locate_tol is None else args.locate_tol}
+
+
 def _cmd(args) -> int:
     from ..locate import DEFAULT_TOL, locatable, locate
 
@@ -52,16 +73,18 @@ def print_located(run, points: dict) -> None:
     if not points:
         print(f"{run.path}: no buckling event to locate (the run stays a sphere)")
         return
-    print(f"{run.path}: located events (dV/V; the steps read it between the previous step and "
-          "the one given)")
+    print("located events (dV/V; pressures in kappa/R^3):")
+    table = run.table.set_index("step")
     for name, p in sorted(points.items(), key=lambda item: item[1]["lo"]):
         old, new = p["old"], p["new"]
-        line = (f"  {name:<17} step {p['step']:>3} (dV/V {p['step_dV_over_V']:.4f}) -> "
-                f"{p['dV_over_V']:.5f} ± {p['uncertainty']:.1e}   {old['shape']} -> "
-                f"{new['shape']}, E/kappa {old['E_over_kappa']:.5g} -> {new['E_over_kappa']:.5g}, "
-                f"p {old['pressure']:.5g} -> {new['pressure']:.5g}; lowest eigenvalue "
-                f"{old['lowest_eigenvalue']:.3g} -> {new['lowest_eigenvalue']:.3g} "
-                f"({p['mechanism']})")
+        k = p["step"]
+        before = float(table.loc[k - 1, "dV_over_V"]) if k - 1 in table.index else float("nan")
+        print(f"  {name:<17} {p['dV_over_V']:.5f} ± {p['uncertainty']:.1e}   (the steps: "
+              f"between {before:.4f} and {p['step_dV_over_V']:.4f}, step {k})")
+        line = (f"  {'':<17} {old['shape']} -> {new['shape']}, E/kappa {old['E_over_kappa']:.5g} "
+                f"-> {new['E_over_kappa']:.5g}, p {old['pressure']:.5g} -> {new['pressure']:.5g}, "
+                f"lowest eigenvalue {old['lowest_eigenvalue']:.3g} -> "
+                f"{new['lowest_eigenvalue']:.3g}: {p['mechanism']}")
         if not p.get("complete", True):
             line += f"; incomplete: {p['failure']}"
         print(line)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ._checks import add_command, run_folder
 from ._options import add_run_output_options, add_threads_option
+from .locate import add_locate_options, locate_arguments
 
 
 def register(sub) -> None:
@@ -14,6 +15,7 @@ def register(sub) -> None:
     parser.add_argument("dir", metavar="DIR", help="run folder")
     add_threads_option(parser)
     add_run_output_options(parser)
+    add_locate_options(parser)
     parser.set_defaults(func=_cmd)
 
 
@@ -22,5 +24,6 @@ def _cmd(args) -> int:
     from ._output import report_run
 
     run_folder("DIR", args.dir)
-    return report_run(resume(args.dir, progress=not args.quiet, threads=args.threads),
-                      plot=not args.no_plot)
+    located = locate_arguments(args)
+    return report_run(resume(args.dir, progress=not args.quiet, threads=args.threads,
+                             **located), plot=not args.no_plot)
