@@ -81,8 +81,12 @@ def check_tol(tol: float) -> float:
 
 def locatable(run: Run) -> str | None:
     """Why the events of ``run`` cannot be located (None if they can): only deflations under
-    volume control, with a rising schedule, are."""
+    volume control, with a rising schedule, minimized to convergence (Newton's method, alone
+    or after CG), are."""
     protocol = run.protocol
+    if protocol.method not in ("newton", "alternate"):
+        return (f"its minimizer is {protocol.method!r}, whose fixed budget of iterations does "
+                "not reach the minimum the bisection compares (Newton's method does)")
     if protocol.control != "volume":
         return f"a {protocol.control}-controlled run (only volume-controlled deflations are)"
     if len(protocol.schedule) and np.any(np.diff((0.0,) + protocol.schedule) <= 0):
