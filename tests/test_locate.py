@@ -170,3 +170,16 @@ def test_mechanism_extrapolates_the_lowest_eigenvalue_linearly():
     assert _mechanism(0.10, 0.5, 0.18, 0.6, 0.03) == ("barrier crossing", None)
     assert _mechanism(0.18, 0.5, 0.18, 0.6, 0.03) == ("undetermined", None)
     assert _mechanism(0.10, 0.5, 0.18, -0.1, 0.03) == ("instability", 0.18)
+
+
+def test_jump_compares_the_energy_difference_with_the_pressure_work():
+    from shellbuckle.locate import _jump
+
+    old = {"pressure": 50.0, "E_total": 70.0}
+    dV = 1e-3
+    # on one branch: E rises by the work p dV of the pressure
+    assert not _jump(old, {"pressure": 50.2, "E_total": 70.0 + 50.1 * dV}, dV)
+    # a snap-through: the pressure halves
+    assert _jump(old, {"pressure": 25.0, "E_total": 70.0 + 40 * dV}, dV)
+    # the same pressure, but the energy off the branch by half the work
+    assert _jump(old, {"pressure": 50.0, "E_total": 70.0 + 75.0 * dV}, dV)

@@ -21,7 +21,10 @@ at step ``k`` is located between the stored steps ``k - 1`` and ``k`` by bisecti
 The located threshold is the bracket's middle, with an uncertainty of half its width. Stored
 with it (:mod:`shellbuckle.store.located`) are both ends' energies, pressures and shapes, each
 evaluation, and the lowest eigenvalue of the constrained Hessian (:mod:`shellbuckle.solve.spectrum`)
-at the start of the bracket and at both ends, which tells the mechanism: an *instability* when
+at the start of the bracket and at both ends, which tells the mechanism. Where both ends lie on
+one branch (the pressure continuous and the energy difference the pressure's work over the
+bracket, :func:`_jump`) the event is *continuous*: the shape crosses the classifier's line
+(a rim turning concave between its apices, say) without a jump. Otherwise it is an *instability* when
 that eigenvalue on the old branch, extrapolated linearly in volume, reaches zero within the
 original step after the located point (a fold or bifurcation of the branch: Thompson & Hunt,
 *A General Theory of Elastic Stability*, 1973), else a *barrier crossing*: the old branch is
@@ -68,6 +71,11 @@ EVENT_SHAPES: dict[str, Callable[[str], bool]] = {
     "wrinkles": lambda shape: shape == "wrinkled",
 }
 LOCATED_EVENTS = tuple(EVENT_SHAPES)
+#: Both ends of a located bracket lie on one branch (the event is a shape crossing the
+#: classifier's line, not a jump) when the pressure differs by at most this fraction ...
+CONTINUOUS_PRESSURE = 0.01
+#: ... and the energy by the pressure's work over the bracket to this fraction of that work.
+CONTINUOUS_WORK = 0.1
 
 
 def check_tol(tol: float) -> float:
@@ -218,7 +226,11 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         trend = (lo_start, lowest_start, lo, old["lowest_eigenvalue"])
     else:
         trend = (_target(run, k - 2) if k >= 2 else math.nan, lowest_before, lo, lowest_start)
-    mechanism, zero_at = _mechanism(*trend, _target(run, k) - lo_start)
+    jump = _jump(old, new, ctx.V0 * (hi - lo))
+    if jump:
+        mechanism, zero_at = _mechanism(*trend, _target(run, k) - lo_start)
+    else:
+        mechanism, zero_at = "continuous", None
     return {
         "step": k, "tol": tol, "analysis_version": ANALYSIS_VERSION,
         "dV_over_V": 0.5 * (lo + hi), "uncertainty": 0.5 * (hi - lo), "lo": lo, "hi": hi,
@@ -229,6 +241,19 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         "complete": failure is None, "failure": failure,
         "wall_s": time.perf_counter() - t0,
     }
+
+
+def _jump(old: dict, new: dict, dV: float) -> bool:
+    """Whether the two ends of a bracket lie on different branches: the pressure jumps by more
+    than ``CONTINUOUS_PRESSURE`` of itself, or the energy differs from the work of the
+    pressure over the volume between them (``E_new - E_old = p dV`` with ``p`` their mean,
+    ``dV`` the volume removed) by more than ``CONTINUOUS_WORK`` of that work."""
+    p_old, p_new = float(old["pressure"]), float(new["pressure"])
+    if abs(p_new - p_old) > CONTINUOUS_PRESSURE * max(abs(p_old), abs(p_new)):
+        return True
+    work = 0.5 * (p_old + p_new) * dV
+    scale = abs(work) + 1e-9 * abs(float(old["E_total"]))
+    return abs(float(new["E_total"]) - float(old["E_total"]) - work) > CONTINUOUS_WORK * scale
 
 
 def _mechanism(v_start: float, lowest_start: float, v_old: float, lowest_old: float,
