@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .params import (ShellParameters, check_caption, d_over_R, gamma_from_d_over_R,
                      thickness_factor)
@@ -320,6 +319,8 @@ def crossing(params: ShellParameters, sphere: str = "small_strain") -> float:
     i = int(change[0])
     if g[i + 1] == 0.0:
         return float(np.exp(t[i + 1]))
+    from scipy.optimize import brentq  # SciPy's optimize takes 0.4 s to import
+
     return float(np.exp(brentq(gap, t[i], t[i + 1], xtol=1e-14, rtol=1e-14)))
 
 
@@ -349,6 +350,8 @@ def classical_threshold(params: ShellParameters) -> ClassicalThreshold:
     p = _standard(params)
     p_c = 4.0 * math.sqrt(p.kappa * p.A) / p.R ** 2
     linear = 6.0 * (1.0 - p.nu) / math.sqrt(p.gamma)
+    from scipy.optimize import brentq
+
     # p_exact increases from 0 (x = 0) to +inf (x -> 1); bracket [0, 1 - 1e-15]
     exact = brentq(lambda x: pressure_sphere_exact(x, p) - p_c, 0.0, 1.0 - 1e-15,
                    xtol=1e-15, rtol=1e-14)
