@@ -53,7 +53,8 @@ import numpy as np
 
 __all__ = ["ShellParameters", "PhysicalRangeWarning", "d_over_R", "gamma_from_d_over_R",
            "thickness_factor", "check_caption", "ENERGY_CONVENTIONS", "DEFAULT_CONVENTION",
-           "bending_factor", "check_convention", "convention_formula"]
+           "bending_factor", "check_convention", "convention_formula", "UNITS", "UNIT_SYSTEMS",
+           "unit_scale", "to_si", "to_reduced"]
 
 _REL_TOL = 1e-9  # agreement required between stored derived values and recomputed ones
 
@@ -179,6 +180,47 @@ def check_caption(gamma, d_over_R_caption, nu=1.0 / 3.0) -> bool:
     hi = d_over_R(max(g - dg, np.nextafter(0.0, 1.0)), nu)
     eps = 1e-12 * max(r, hi)
     return bool(lo <= r + dr + eps and hi >= r - dr - eps)
+
+
+#: The physical dimensions of the quantities of a run: name -> (reduced unit, SI unit, powers
+#: of kappa and R in the reduced unit). Energies in kappa, pressures in kappa/R^3 (the paper's
+#: p R^3/kappa), lengths in R, curvatures in 1/R, forces (energy gradients) in kappa/R.
+UNITS = {"energy": ("kappa", "J", 1, 0), "pressure": ("kappa/R^3", "Pa", 1, -3),
+         "length": ("R", "m", 0, 1), "curvature": ("1/R", "1/m", 0, -1),
+         "force": ("kappa/R", "N", 1, -1)}
+#: The unit systems of a run's results: reduced (kappa, R) and SI (a material's).
+UNIT_SYSTEMS = ("reduced", "si")
+
+
+def unit_scale(params: ShellParameters, dimension: str) -> float:
+    """The reduced unit of ``dimension`` (:data:`UNITS`) in the units of ``params``:
+    ``kappa`` for an energy, ``kappa/R^3`` for a pressure, ``R`` for a length, ``1/R`` for a
+    curvature, ``kappa/R`` for a force. For a shell made from a material
+    (:meth:`ShellParameters.from_material`, ``kappa = E d^3/(12 (1 - sigma^2))``) given in SI
+    (E in Pa, d and R in m) it is in J, Pa, m, 1/m, N."""
+    if dimension not in UNITS:
+        raise ValueError(f"dimension must be one of {', '.join(UNITS)}, got {dimension!r}")
+    _, _, kappa_power, R_power = UNITS[dimension]
+    return params.kappa ** kappa_power * params.R ** R_power
+
+
+def to_si(value, dimension: str, params: ShellParameters):
+    """``value`` given in reduced units (``E/kappa``, ``p R^3/kappa``, ``x/R``, ...) in the
+    units of the material of ``params`` (SI when E, d and R were given in SI): ``value *
+    unit_scale(params, dimension)``, vectorized. ``ValueError`` for a shell given by gamma
+    alone, which has no physical size."""
+    if not params.is_material:
+        raise ValueError("the shell has no material (E, sigma, d, R): its results have no SI "
+                         "values; make it with ShellParameters.from_material")
+    return np.asarray(value, dtype=float) * unit_scale(params, dimension) \
+        if np.ndim(value) else float(value) * unit_scale(params, dimension)
+
+
+def to_reduced(value, dimension: str, params: ShellParameters):
+    """``value`` in the units of ``params`` (as a run stores it) in reduced units:
+    ``value / unit_scale(params, dimension)``, vectorized."""
+    return np.asarray(value, dtype=float) / unit_scale(params, dimension) \
+        if np.ndim(value) else float(value) / unit_scale(params, dimension)
 
 
 _ALLOWED = {"gamma": "> 0", "nu": "in (-1, 1)", "kappa": "> 0", "R": "> 0", "E": "> 0",

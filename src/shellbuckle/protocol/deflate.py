@@ -337,7 +337,7 @@ def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before
         "pressure": float(result.pressure) if result is not None else 0.0,
         "grad_norm": float(result.grad_norm) if result is not None else 0.0,
         "iterations": int(iterations),
-        "inertia": int(result.inertia) if result is not None and result.inertia is not None else -1,
+        "inertia": None if result is None or result.inertia is None else int(result.inertia),
         "min_distance": float(contact.min_distance), "wall_s": float(wall_s),
         "self_intersecting": bool(contact.intersects),
         "converged": bool(result.success) if result is not None else True,
