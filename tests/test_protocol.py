@@ -42,6 +42,43 @@ def test_icosahedron_follows_exact_uniform_shrink():
         assert record["dV_over_V"] == pytest.approx(record["target_dV_over_V"], abs=1e-12)
 
 
+def test_a_smooth_imperfection_relaxes_to_the_exact_uniform_shrink():
+    # the icosahedron's exact minimum (above) from starts displaced by the smooth imperfection
+    # (1 % of R along the normals, degrees 2-4): the minimization removes it before buckling
+    mesh = icosphere(1)
+    params = ShellParameters.from_gamma(500.0, nu=1 / 3)
+    protocol = Protocol(schedule=(0.01, 0.02), smooth_jiggle=0.01, smooth_degree=4, seed=2)
+    ctx, _, records = _run(mesh, params, protocol)
+    rest_area = ctx.energy.stretching.rest_area.sum()
+    for record in records:
+        s = (1.0 - record["target_dV_over_V"]) ** (1 / 3)
+        e = 0.5 * (s * s - 1.0)
+        expected = rest_area * params.A * e * e / (1 - params.nu) + ctx.energy.bending.value(s * mesh.X)
+        assert record["E_total"] == pytest.approx(expected, rel=1e-6)
+        assert record["jiggle_sigma"] == pytest.approx(0.01, rel=1e-12)  # rms, smooth_jiggle R
+
+
+def test_smooth_imperfection_options():
+    smooth = Protocol(schedule=(0.1,), smooth_jiggle=0.01)
+    assert smooth.temperature is None and smooth.jiggle is None
+    assert smooth.smooth_degree == 20  # the default degree
+    assert Protocol.from_dict(smooth.to_dict()) == smooth
+    assert smooth.to_dict()["smooth_jiggle"] == 0.01
+    # a run without it stores no new key (runs stored before it keep their identity) and reads
+    # back without it
+    default = Protocol(schedule=(0.1,))
+    assert "smooth_jiggle" not in default.to_dict() and "smooth_degree" not in default.to_dict()
+    assert Protocol.from_dict(default.to_dict()).smooth_jiggle is None
+    for bad, match in (({"smooth_jiggle": 0.01, "temperature": 0.05}, "not both"),
+                       ({"smooth_jiggle": 0.01, "jiggle": 0.1}, "not both"),
+                       ({"smooth_degree": 8}, "with smooth_jiggle"),
+                       ({"smooth_jiggle": 0.5}, r"\[0, 0.1\]"),
+                       ({"smooth_jiggle": 0.01, "smooth_degree": 1}, r"\[2, 400\]"),
+                       ({"smooth_jiggle": 0.01, "smooth_degree": 8.5}, "integer")):
+        with pytest.raises(ValueError, match=match):
+            Protocol(schedule=(0.1,), **bad)
+
+
 def test_prebuckling_energy_follows_U_sphere_exact():
     mesh = icosphere(6)
     params = ShellParameters.from_gamma(2333.0, nu=1 / 3)

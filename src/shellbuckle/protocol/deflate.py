@@ -3,7 +3,9 @@
 Protocol (Quilliet et al., EPJE 27, 13 (2008), §4.1), one volume step ``k``:
 
 1. the target volume becomes ``V0 (1 - dV/V_k)`` (steps of ``dv = 0.0190 V0`` by default);
-2. jiggle: seeded Gaussian vertex displacements (:mod:`shellbuckle.protocol.jiggle`);
+2. jiggle: seeded Gaussian vertex displacements (:mod:`shellbuckle.protocol.jiggle`), or a
+   seeded smooth normal displacement defined on the reference sphere, the same field on any
+   mesh (:mod:`shellbuckle.protocol.imperfection`);
 3. minimize the elastic energy at fixed volume with ``c0 = 2/R`` (stress-free sphere); the
    energy reached is ``E_before_c0_cycle``;
 4. zero-spontaneous-curvature cycle (on by default): ``c0 -> 0``, minimize, ``c0 -> 2/R``,
@@ -65,6 +67,8 @@ from ..solve.linesearch import RestoredPath
 from ..solve.newton import ABANDONED
 from ..solve.pressure import minimize_at_pressure
 from ..solve.workspace import Workspace
+from .imperfection import (DEFAULT_DEGREE, reference_directions, reference_sphere,
+                           smooth_jiggle)
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
                      step_rng)
 from .schedule import PAPER_DV, check_schedule, linear_schedule
@@ -113,6 +117,14 @@ DEFAULT_TEMPERATURE = EVOLVER_DEFAULT_TEMPERATURE
 """Default jiggle: Surface Evolver's default temperature 0.05, sigma = 0.028 R per coordinate
 (the paper's runs were made with Surface Evolver's jiggle; see :mod:`.jiggle`)."""
 
+MAX_SMOOTH_JIGGLE = 0.1
+"""Largest rms amplitude of the smooth imperfection, in units of the reference radius R: an
+imperfection, not a new shape (at L = 20 its rms slope is already about 1 there)."""
+
+MAX_SMOOTH_DEGREE = 400
+"""Highest degree L of the smooth imperfection: 4 mean edges per wavelength 2 pi R / L
+(:data:`.imperfection.EDGES_PER_WAVELENGTH`) need about 10^6 vertices at L = 400."""
+
 
 @dataclass(frozen=True)
 class Protocol:
@@ -127,7 +139,14 @@ class Protocol:
     ``c0_cycle``: the paper's zero-curvature cycle at each step. The jiggle is set by
     ``temperature`` (Surface Evolver's scale: sigma = 0.28 T overall_size, 0.028 R at the
     default T = 0.05) or by ``jiggle`` (sigma as a fraction of the mean edge length), not both;
-    with neither, ``temperature = 0.05``. ``method``: minimizer (``newton``, ``alternate`` = CG
+    with neither, ``temperature = 0.05``. Instead of either, ``smooth_jiggle`` (a fraction of
+    the reference radius R) sets a smooth imperfection: a random field of spherical harmonics
+    of degrees 2 to ``smooth_degree`` (default :data:`~.imperfection.DEFAULT_DEGREE`) with a
+    flat power per degree and an rms of ``smooth_jiggle R``, drawn from the step's random
+    stream, evaluated at each vertex's material point on the reference sphere and applied
+    along the current vertex normals: the same field on any mesh (:mod:`.imperfection`; the
+    record's ``jiggle_sigma`` is then its rms, a length); runs stored before this option
+    existed resume without it. ``method``: minimizer (``newton``, ``alternate`` = CG
     then Newton as in the paper, ``cg``, ``gd``). ``stop_at_contact``: stop when the surface
     intersects itself. ``tol``: relative projected-gradient tolerance of the minimizer.
     ``prerelax``: every Newton minimization starts with L-BFGS steps preconditioned by the
@@ -156,6 +175,8 @@ class Protocol:
     fixed_dV_over_V: float | None = None
     prerelax: bool = True
     direct_return: bool = True
+    smooth_jiggle: float | None = None
+    smooth_degree: int | None = None
 
     def __post_init__(self):
         if self.control not in CONTROLS:
@@ -183,7 +204,8 @@ class Protocol:
             raise ValueError(f"give either jiggle (fraction of the mean edge length, got "
                              f"{self.jiggle!r}) or temperature (Surface Evolver's jiggle scale, "
                              f"got {self.temperature!r}), not both")
-        if self.jiggle is None and self.temperature is None:
+        self._check_smooth()
+        if self.jiggle is None and self.temperature is None and self.smooth_jiggle is None:
             object.__setattr__(self, "temperature", DEFAULT_TEMPERATURE)
         if self.jiggle is not None and not (np.isfinite(self.jiggle) and 0 <= self.jiggle <= 0.5):
             raise ValueError(f"jiggle amplitude must be in [0, 0.5] (fraction of the mean edge "
@@ -201,6 +223,32 @@ class Protocol:
         if not (0 < self.tol < 1e-2):
             raise ValueError(f"tol must be in (0, 1e-2), got {self.tol!r}")
 
+    def _check_smooth(self) -> None:
+        """The smooth imperfection's options: exclusive with the per-vertex jiggles, an
+        amplitude in [0, MAX_SMOOTH_JIGGLE], a degree in [2, MAX_SMOOTH_DEGREE] (default
+        DEFAULT_DEGREE) only with an amplitude."""
+        a, L = self.smooth_jiggle, self.smooth_degree
+        if a is None:
+            if L is not None:
+                raise ValueError(f"smooth_degree (got {L!r}) is the degree of the smooth "
+                                 "imperfection: give it with smooth_jiggle")
+            return
+        if self.jiggle is not None or self.temperature is not None:
+            raise ValueError(f"give either smooth_jiggle (a smooth imperfection, got {a!r}) or "
+                             f"a per-vertex jiggle (jiggle {self.jiggle!r}, temperature "
+                             f"{self.temperature!r}), not both")
+        if isinstance(a, bool) or not (isinstance(a, (int, float, np.integer, np.floating))
+                                       and 0 <= a <= MAX_SMOOTH_JIGGLE):
+            raise ValueError(f"smooth_jiggle (rms amplitude in units of R) must be in [0, "
+                             f"{MAX_SMOOTH_JIGGLE:g}], got {a!r}")
+        L = DEFAULT_DEGREE if L is None else L
+        if isinstance(L, bool) or not (isinstance(L, (int, np.integer))
+                                       and 2 <= L <= MAX_SMOOTH_DEGREE):
+            raise ValueError(f"smooth_degree (highest degree L of the smooth imperfection) "
+                             f"must be an integer in [2, {MAX_SMOOTH_DEGREE}], got {L!r}")
+        object.__setattr__(self, "smooth_jiggle", float(a))
+        object.__setattr__(self, "smooth_degree", int(L))
+
     @classmethod
     def paper(cls, dv: float = PAPER_DV, until: float = 0.95, **options) -> "Protocol":
         """The paper's protocol: steps of ``dv`` up to ``until`` (or self-contact)."""
@@ -210,6 +258,8 @@ class Protocol:
         out = dataclasses.asdict(self) | {"schedule": list(self.schedule)}
         if self.fixed_dV_over_V is None:  # runs stored before parameter paths keep their identity
             del out["fixed_dV_over_V"]
+        if self.smooth_jiggle is None:  # so do runs stored before the smooth imperfection
+            del out["smooth_jiggle"], out["smooth_degree"]
         return out
 
     @classmethod
@@ -223,7 +273,11 @@ class Protocol:
         return cls(**data)
 
     def jiggle_sigma(self, X_reference: np.ndarray, X: np.ndarray, edges: np.ndarray) -> float:
-        """The jiggle's displacement std per coordinate at positions ``X``."""
+        """The jiggle's displacement std per coordinate at positions ``X``; for the smooth
+        imperfection, its rms normal displacement (``smooth_jiggle`` times the radius of the
+        reference sphere)."""
+        if self.smooth_jiggle is not None:
+            return self.smooth_jiggle * reference_sphere(X_reference)[1]
         if self.temperature is not None:
             return evolver_sigma(self.temperature, X_reference)
         return float(self.jiggle) * mean_edge_length(X, edges)
@@ -605,6 +659,17 @@ def folded_locally(checker: ContactChecker, X: np.ndarray,
             f"each other on the mesh (a fold)")
 
 
+def _jiggled(ctx: Context, X: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """``X`` jiggled by the protocol's jiggle of size ``sigma`` (:meth:`Protocol.jiggle_sigma`)
+    with the random stream ``rng``: Surface Evolver's per-vertex jiggle, or the smooth
+    imperfection evaluated at the material points of the reference mesh."""
+    p = ctx.protocol
+    if p.smooth_jiggle is None:
+        return jiggle(X, sigma, rng)
+    return smooth_jiggle(X, ctx.mesh.faces, reference_directions(ctx.mesh.X), sigma,
+                         p.smooth_degree, rng)
+
+
 @one_blas_thread
 def step(ctx: Context, state: State):
     """One step (a volume, pressure, gamma or c0 increment): jiggle, minimize, c0 cycle,
@@ -633,7 +698,7 @@ def step(ctx: Context, state: State):
     for attempt in range(retries + 1):
         contact = None
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
-        X = jiggle(state.X, sigma, rng)
+        X = _jiggled(ctx, state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
                            relaxed_token=ctx.workspace.kept,
                            certify_single=state.certify_single)

@@ -19,6 +19,11 @@ coordinate. Two ways to set ``sigma``:
 
 The random stream of step ``k`` of a run with seed ``s`` is ``numpy.random.default_rng([s, k])``,
 so a resumed run draws exactly the numbers an uninterrupted one would.
+
+Either way the displacements are white noise at the vertices: on a finer mesh the same
+``sigma`` is another, rougher perturbation. The smooth imperfection
+(:mod:`.imperfection`, ``Protocol.smooth_jiggle``) is a field on the reference sphere instead,
+the same on any mesh, drawn from the same streams.
 """
 
 from __future__ import annotations
