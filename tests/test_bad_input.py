@@ -3,6 +3,7 @@ that names the option and the value as typed; no file or folder is made."""
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -10,8 +11,8 @@ import sys
 import pytest
 
 from shellbuckle.cli import build_parser, main
-from shellbuckle.commands._checks import (MAX_VERTICES, MIN_VERTICES, gamma_resolved,
-                                          vertices_needed)
+from shellbuckle.commands._checks import (MAX_VERTICES, MIN_VERTICES, degree_resolved,
+                                          gamma_resolved, mean_edge, vertices_needed)
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.run import deflate
@@ -89,6 +90,29 @@ CASES = [
     (["deflate", "--temperature", "-0.1", "--out", "{tmp}/r"], "--temperature", "-0.1"),
     (["deflate", "--jiggle", "-1", "--out", "{tmp}/r"], "--jiggle", "-1"),
     (["deflate", "--jiggle", "0.9", "--out", "{tmp}/r"], "--jiggle", "0.9"),
+    (["deflate", "--smooth-jiggle", "0.2", "--out", "{tmp}/r"], "--smooth-jiggle", "0.2"),
+    (["deflate", "--smooth-jiggle", "-0.01", "--out", "{tmp}/r"], "--smooth-jiggle", "-0.01"),
+    (["deflate", "--smooth-jiggle", "abc", "--out", "{tmp}/r"], "--smooth-jiggle", "abc"),
+    (["deflate", "--smooth-jiggle", "0.01", "--temperature", "0.05", "--out", "{tmp}/r"],
+     "--smooth-jiggle", "0.01"),
+    (["deflate", "--smooth-jiggle", "0.01", "--jiggle", "0.1", "--out", "{tmp}/r"],
+     "--smooth-jiggle", "0.01"),
+    (["deflate", "--smooth-jiggle-d", "0.5", "--smooth-jiggle", "0.01", "--out", "{tmp}/r"],
+     "--smooth-jiggle-d", "0.5"),
+    (["deflate", "--smooth-jiggle-d", "10", "--gamma", "271", "--vertices", "600",
+      "--smooth-degree", "8", "--out", "{tmp}/r"], "--smooth-jiggle-d", "10"),
+    (["deflate", "--smooth-jiggle-d", "nan", "--out", "{tmp}/r"], "--smooth-jiggle-d", "nan"),
+    (["deflate", "--smooth-degree", "8", "--out", "{tmp}/r"], "--smooth-degree", "8"),
+    (["deflate", "--smooth-jiggle", "0.01", "--smooth-degree", "1", "--out", "{tmp}/r"],
+     "--smooth-degree", "1"),
+    (["deflate", "--smooth-jiggle", "0.01", "--smooth-degree", "2.5", "--out", "{tmp}/r"],
+     "--smooth-degree", "2.5"),
+    (["deflate", "--smooth-jiggle", "0.01", "--smooth-degree", "30", "--out", "{tmp}/r"],
+     "--smooth-degree", "30"),
+    (["deflate", "--smooth-jiggle", "0.01", "--gamma", "271", "--vertices", "600", "--out",
+      "{tmp}/r"], "--smooth-jiggle", "0.01"),
+    (["deflate", "--from", "{run}", "--smooth-jiggle", "0.01", "--out", "{tmp}/c"],
+     "--smooth-jiggle", "0.01"),
     (["deflate", "--max-iter", "0", "--out", "{tmp}/r"], "--max-iter", "0"),
     (["deflate", "--max-iter", "1e9", "--out", "{tmp}/r"], "--max-iter", "1e9"),
     (["deflate", "--max-iter", "10000000", "--out", "{tmp}/r"], "--max-iter", "10000000"),
@@ -369,6 +393,9 @@ def test_the_real_exit_code_is_2(tmp_path, argv, option, value):
     (["deflate", "--temperature", "0"], "temperature", 0.0),
     (["deflate", "--temperature", "1"], "temperature", 1.0),
     (["deflate", "--jiggle", "0.5"], "jiggle", 0.5),
+    (["deflate", "--smooth-jiggle", "0.1"], "smooth_jiggle", 0.1),
+    (["deflate", "--smooth-jiggle", "0"], "smooth_jiggle", 0.0),
+    (["deflate", "--smooth-degree", "400"], "smooth_degree", 400),
     (["deflate", "--seed", "4294967295"], "seed", 4294967295),
     (["deflate", "--threads", "1"], "threads", 1),
     (["continue", "DIR", "--c0", "-1e3", "--out", "o"], "c0", "-1e3"),
@@ -407,3 +434,14 @@ def test_the_mesh_rule():
     assert vertices_needed(gamma_resolved(400)) <= 401
     assert vertices_needed(29160.0) <= 3594   # the paper's largest gamma on its mesh
     assert vertices_needed(4 * 15163.0) <= 400  # the quick study under the paper's reading
+
+
+def test_the_smooth_degree_rule():
+    # 4 mean edges per shortest wavelength 2 pi R/L of the smooth imperfection
+    from shellbuckle.protocol.imperfection import DEFAULT_DEGREE
+
+    for n in (600, 3594, 40000, MAX_VERTICES):
+        L = degree_resolved(n)
+        assert 2 * math.pi / L >= 4 * mean_edge(n) > 2 * math.pi / (L + 1)
+    assert degree_resolved(3594) >= DEFAULT_DEGREE  # the paper's mesh resolves the default
+    assert degree_resolved(MAX_VERTICES) >= 400  # the largest degree allowed

@@ -10,7 +10,7 @@ and what is allowed (docs/errors.md).
   (an unknown option, a missing argument, a bad choice) are one line, exit code 2; it reads
   ``-1e3`` as a negative number, not as an option; it prints warnings as one line.
 - The rules that involve several options: :func:`check_mesh` (the mesh must resolve the
-  elastic length), :func:`check_c0`, :func:`check_pressures`, :func:`check_steps`,
+  elastic length), :func:`check_smooth_degree` (and the smooth imperfection), :func:`check_c0`, :func:`check_pressures`, :func:`check_steps`,
   :func:`check_parallel`; and the paths: :func:`input_file`, :func:`run_folder`,
   :func:`output_file`, :func:`output_folder`.
 """
@@ -133,6 +133,14 @@ RANGES = {
                        "limits, -gamma to the classical buckling pressure, are checked next"),
     "temperature": Range(0, 1, reason="Surface Evolver's jiggle scale"),
     "jiggle": Range(0, 0.5, reason="a fraction of the mean edge: more tangles the mesh"),
+    "smooth_jiggle": Range(0, 0.1, reason="an rms normal displacement in units of R: an "
+                           "imperfection, not a new shape"),
+    "smooth_jiggle_d": Range(0, 1000, reason="in units of the thickness d; d/R times it must "
+                             "lie in [0, 0.1] (units of R), which is checked next"),
+    "smooth_degree": Range(2, 400, integer=True,
+                           reason="degree 0 is a volume change and 1 a translation; at 400 the "
+                                  f"mesh that resolves it needs about {MAX_VERTICES} vertices; "
+                                  "the mesh's own limit is checked next"),
     "max_iter": Range(1, 100_000, integer=True,
                       reason="each Newton step is a sparse factorization"),
     "c0": Range(-1e6, 1e6, reason="a curvature c1 + c2 in 1/length; the mesh's own limit, "
@@ -361,6 +369,35 @@ def check_pressures(option: str, texts, pressures, params) -> None:
                              "buckling pressure p_c = 4 sqrt(kappa A)/R^2 a pressure-controlled "
                              "shell turns inside out; below -gamma it more than doubles its "
                              "volume)")
+
+
+def degree_resolved(n_vertices: int) -> int:
+    """The highest degree L of the smooth imperfection a mesh of ``n_vertices`` resolves: its
+    shortest wavelength 2 pi R / L spans at least
+    :data:`~shellbuckle.protocol.imperfection.EDGES_PER_WAVELENGTH` mean edges."""
+    from ..protocol.imperfection import EDGES_PER_WAVELENGTH
+
+    return int(2.0 * math.pi / (EDGES_PER_WAVELENGTH * mean_edge(n_vertices)))
+
+
+def check_smooth_degree(option: str, text, degree: int, n_vertices: int,
+                        mesh: str = "the mesh") -> None:
+    """``ValueError`` when a mesh of ``n_vertices`` cannot resolve the smooth imperfection of
+    highest degree ``degree`` (:func:`degree_resolved`)."""
+    from ..protocol.imperfection import EDGES_PER_WAVELENGTH
+
+    best = degree_resolved(n_vertices)
+    if degree <= best:
+        return
+    wavelength = 2.0 * math.pi / degree
+    default = "" if option == "--smooth-degree" else \
+        f" (the default --smooth-degree {degree}; give a lower one or more vertices)"
+    raise ValueError(
+        f"{option} {_typed(text, degree)}: the mesh cannot resolve the smooth imperfection of "
+        f"degree L = {degree}{default}: its shortest wavelength 2 pi R/L = {wavelength:.3g} R "
+        f"needs {EDGES_PER_WAVELENGTH} edges of at most {wavelength / EDGES_PER_WAVELENGTH:.3g} "
+        f"R, and {mesh} has a mean edge of {mean_edge(n_vertices):.3g} R (it resolves "
+        f"L <= {best})")
 
 
 def check_steps(option: str, text, n_steps: float) -> None:

@@ -137,14 +137,17 @@ class _Option:
 @lru_cache(maxsize=1)
 def protocol_defaults() -> dict:
     """The protocol's defaults: the fields of :class:`Protocol` and the ``dv``/``until`` of
-    :meth:`Protocol.paper`, with the jiggle's default temperature."""
+    :meth:`Protocol.paper`, with the jiggle's default temperature and the smooth
+    imperfection's default degree."""
     from ..protocol.deflate import DEFAULT_TEMPERATURE, Protocol
+    from ..protocol.imperfection import DEFAULT_DEGREE
 
     out = {f.name: f.default for f in dataclasses.fields(Protocol)
            if f.default is not dataclasses.MISSING}
     out |= {name: p.default for name, p in inspect.signature(Protocol.paper).parameters.items()
             if p.default is not inspect.Parameter.empty}
     out["temperature"] = DEFAULT_TEMPERATURE
+    out["smooth_degree"] = DEFAULT_DEGREE
     return out
 
 
@@ -177,6 +180,19 @@ def _options() -> dict:
                 metavar="T,..", range="temperature"),
         _Option("--jiggle", "jiggle", "jiggle amplitude as a fraction of the mean edge "
                 "length, instead of --temperature", metavar="J,..", range="jiggle"),
+        _Option("--smooth-jiggle", "smooth_jiggle", "a smooth imperfection instead of "
+                "--temperature/--jiggle, the same field on any mesh (for mesh-refinement "
+                "studies): at each step a seeded random field of spherical harmonics of "
+                "degrees 2 to --smooth-degree with equal power per degree, applied along the "
+                "normals, with this rms amplitude in units of R", range="smooth_jiggle"),
+        _Option("--smooth-jiggle-d", "smooth_jiggle_d", "the rms amplitude of --smooth-jiggle "
+                "in units of the shell thickness d (d/R = sqrt(12 (1 - 2 nu^2/(1-nu))/gamma)); "
+                "stored in units of R", range="smooth_jiggle_d"),
+        _Option("--smooth-degree", "smooth_degree", "highest degree L of the smooth "
+                "imperfection (shortest wavelength 2 pi R/L); the mesh must resolve it with 4 "
+                "mean edges per wavelength", f"default {d['smooth_degree']}: it holds the "
+                "classical buckling degree gamma^(1/4) up to gamma = 1.6e5, and the paper's "
+                "3594-vertex mesh resolves it", type=int, range="smooth_degree"),
         _Option("--bending", "bending", "bending discretization, one of "
                 f"{', '.join(BENDING_KINDS)}", f"default {d['bending']}; a Surface Evolver "
                 "--mesh file that bends with star_perp_sq_mean_curvature brings evolver",
@@ -203,7 +219,7 @@ def _options() -> dict:
 def add_protocol_options(parser, names, *, listed: bool = False, inherited: bool = False,
                          flags: dict | None = None, ranges: dict | None = None) -> None:
     """Add the protocol options ``names`` (Protocol fields, plus ``dv``, ``until``,
-    ``schedule``, ``pressures``) to ``parser``; each defaults to None. ``listed``: as
+    ``schedule``, ``pressures``, ``smooth_jiggle_d``) to ``parser``; each defaults to None. ``listed``: as
     comma-separated lists (a sweep's axes). ``inherited``: a continued run keeps the stored
     run's value of an option left out, which the help says. ``flags`` renames options
     (a sweep's ``{"seed": "--seeds"}``). ``ranges`` replaces the range of an option

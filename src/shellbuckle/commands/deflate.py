@@ -6,15 +6,20 @@
 
 from __future__ import annotations
 
-from ._checks import (RANGES, add_command, add_number, check_c0, check_mesh, check_pressures,
-                      check_steps, floats, input_file, output_folder, typed)
+from ._checks import (RANGES, add_command, add_number, allowed, check_c0, check_mesh,
+                      check_pressures, check_smooth_degree, check_steps, floats, input_file,
+                      output_folder, typed)
 from ._options import (add_protocol_options, add_run_output_options, add_shell_options,
                        add_threads_option, default_gamma, params_from_args, protocol_defaults,
                        protocol_values)
 
-#: The protocol options of a deflation (Protocol fields, and dv, until, schedule, pressures).
+#: The protocol options of a deflation (Protocol fields, and dv, until, schedule, pressures,
+#: smooth_jiggle_d).
 PROTOCOL = ("seed", "dv", "until", "schedule", "pressures", "c0_cycle", "temperature", "jiggle",
-            "bending", "method", "max_iter", "c0", "prerelax", "direct_return")
+            "smooth_jiggle", "smooth_jiggle_d", "smooth_degree", "bending", "method",
+            "max_iter", "c0", "prerelax", "direct_return")
+#: The options of the smooth imperfection, which replaces the per-vertex jiggle.
+SMOOTH = ("smooth_jiggle", "smooth_jiggle_d", "smooth_degree")
 #: Options of a new shell or mesh, which a continued run takes from the stored one.
 NEW_SHELL = ("gamma", "nu", "E", "sigma", "d", "R", "energy_convention", "vertices",
              "icosphere", "mesh", "pressures", "bending", "c0")
@@ -62,6 +67,12 @@ def _cmd(args) -> int:
     if args.from_run is not None:
         from .continue_ import continue_run
 
+        for name in SMOOTH:
+            if getattr(args, name) is not None:
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(f"{flag} {typed(args, flag, getattr(args, name))}: allowed: "
+                                 "without --from (a continued run keeps the stored run's "
+                                 "jiggle)")
         return continue_run(_as_continue(args))
     from ..run import deflate
 
@@ -72,7 +83,7 @@ def _cmd(args) -> int:
                                      options)
     options.setdefault("bending", from_file.get("bending"))
     options.setdefault("c0", from_file.get("c0"))
-    options = {k: v for k, v in options.items() if v is not None}
+    options = {k: v for k, v in options.items() if v is not None and k != "smooth_jiggle_d"}
     run = deflate(mesh, params, out=args.out, progress=not args.quiet,
                   form_factors=from_file.get("form_factors"), threads=args.threads, **options)
     from ._output import report_run
@@ -95,6 +106,7 @@ def _protocol(args) -> dict:
                         len(options[name]))
     if options.get("schedule") is not None and options.get("pressures") is not None:
         raise ValueError("give either --schedule or --pressures, not both")
+    _check_smooth_options(args, options)
     defaults = protocol_defaults()
     dv, until = options.get("dv", defaults["dv"]), options.get("until", defaults["until"])
     if dv <= 0:
@@ -106,7 +118,9 @@ def _protocol(args) -> dict:
                          f"--dv {typed(args, '--dv', dv)} and below 0.99")
     check_steps("--dv", typed(args, "--dv", dv), until / dv)
     fields = {k: v for k, v in options.items() if k not in ("dv", "until", "schedule",
-                                                           "pressures")}
+                                                           "pressures", "smooth_jiggle_d")}
+    if "smooth_jiggle_d" in options:  # its value in units of R needs the shell: _check_smooth
+        fields["smooth_jiggle"] = 0.0
     if options.get("pressures") is not None:
         Protocol(schedule=tuple(options["pressures"]), control="pressure", **fields)
     elif options.get("schedule") is not None:
@@ -114,6 +128,28 @@ def _protocol(args) -> dict:
     else:
         Protocol.paper(**{k: options[k] for k in ("dv", "until") if k in options}, **fields)
     return options
+
+
+def _check_smooth_options(args, options: dict) -> None:
+    """The smooth imperfection (``--smooth-jiggle`` or ``--smooth-jiggle-d``, and
+    ``--smooth-degree``) replaces the per-vertex jiggle: one amplitude, without
+    ``--temperature`` or ``--jiggle``; a degree only with an amplitude."""
+    given = [name for name in ("smooth_jiggle", "smooth_jiggle_d") if name in options]
+    if len(given) == 2:
+        raise ValueError(f"--smooth-jiggle-d {typed(args, '--smooth-jiggle-d')}: give either "
+                         "--smooth-jiggle (units of R) or --smooth-jiggle-d (units of the "
+                         "thickness d), not both")
+    if given:
+        flag = "--" + given[0].replace("_", "-")
+        for other in ("temperature", "jiggle"):
+            if other in options:
+                raise ValueError(f"{flag} {typed(args, flag, options[given[0]])}: allowed: "
+                                 f"without --{other} (the smooth imperfection replaces Surface "
+                                 "Evolver's per-vertex jiggle)")
+    elif "smooth_degree" in options:
+        raise ValueError(f"--smooth-degree {typed(args, '--smooth-degree')}: allowed: only "
+                         "with --smooth-jiggle or --smooth-jiggle-d (the highest degree of the "
+                         "smooth imperfection)")
 
 
 def _shell(args, seed: int, options: dict):
@@ -151,7 +187,9 @@ def _shell(args, seed: int, options: dict):
 
 
 def _check_shell(args, params, n: int, mesh: str, options: dict) -> None:
-    """The mesh of ``n`` vertices resolves gamma; c0 and the pressures suit the shell."""
+    """The mesh of ``n`` vertices resolves gamma and the smooth imperfection's degree; c0 and
+    the pressures suit the shell. An amplitude in units of the thickness
+    (``--smooth-jiggle-d``) becomes ``options["smooth_jiggle"]``, in units of R."""
     if args.gamma is not None:
         option, text = "--gamma", typed(args, "--gamma", args.gamma)
     elif args.d is not None:
@@ -165,6 +203,29 @@ def _check_shell(args, params, n: int, mesh: str, options: dict) -> None:
     if options.get("pressures") is not None:
         texts = [t.strip() for t in args.pressures.split(",") if t.strip()]
         check_pressures("--pressures", texts, options["pressures"], params)
+    _check_smooth(args, params, n, mesh, options)
+
+
+def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
+    from ..protocol.imperfection import DEFAULT_DEGREE
+
+    if options.get("smooth_jiggle_d") is not None:
+        value = options["smooth_jiggle_d"] * params.d_over_R
+        if RANGES["smooth_jiggle"].problem(value):
+            raise ValueError(f"--smooth-jiggle-d {typed(args, '--smooth-jiggle-d')}: gives an rms "
+                             f"amplitude of {value:.4g} R at d/R = {params.d_over_R:.4g}; "
+                             f"{allowed('smooth_jiggle')}")
+        options["smooth_jiggle"] = value
+    if options.get("smooth_jiggle") is None:
+        return
+    if options.get("smooth_degree") is not None:
+        option, text = "--smooth-degree", typed(args, "--smooth-degree")
+    else:
+        option = "--smooth-jiggle-d" if options.get("smooth_jiggle_d") is not None \
+            else "--smooth-jiggle"
+        text = typed(args, option)
+    check_smooth_degree(option, text, options.get("smooth_degree") or DEFAULT_DEGREE, n,
+                        mesh=mesh)
 
 
 def _as_continue(args):
