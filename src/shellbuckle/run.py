@@ -463,22 +463,30 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
             state = State(step=last, X=state.X, stopped="self-intersection")
         elif last >= len(protocol.schedule):
             state = State(step=last, X=state.X, stopped="end of the schedule")
-    bar = _progress(progress, len(protocol.schedule), state.step)
-    done = 0
-    while state.stopped is None and (max_steps is None or done < max_steps):
-        checkpoint()
-        state, record = protocol_mod.step(ctx, state)
-        store.append_step(state.step, state.X, record)
-        done += 1
+    bar = _progress(progress, len(protocol.schedule), state.step, mesh, params)
+    done, ended = 0, True
+    try:
+        with _FoldWarnings() as folds:
+            while state.stopped is None and (max_steps is None or done < max_steps):
+                checkpoint()
+                folds.count = 0
+                state, record = protocol_mod.step(ctx, state)
+                store.append_step(state.step, state.X, record)
+                done += 1
+                if folds.count:
+                    log.warning("%s", _fold_verdict(state.step, record))
+                if bar is not None:
+                    bar.update(state.X, record)
+                log.info("step %d: dV/V = %.4f, E = %.6g, p = %.6g, %d it, %.2f s", state.step,
+                         record["dV_over_V"], record["E_total"], record["pressure"],
+                         record["iterations"], record["wall_s"])
+        ended = state.stopped is not None
+    except BaseException as exc:
+        ended = interrupt_of(exc) is None  # a failure ends the run; an interrupt pauses it
+        raise
+    finally:
         if bar is not None:
-            bar.update(1)
-            bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} E/k={record['E_over_kappa']:.4g} "
-                                f"p={record['pressure']:.4g}")
-        log.info("step %d: dV/V = %.4f, E = %.6g, p = %.6g, %d it, %.2f s", state.step,
-                 record["dV_over_V"], record["E_total"], record["pressure"],
-                 record["iterations"], record["wall_s"])
-    if bar is not None:
-        bar.close()
+            bar.close(ended)
     checkpoint()
     if state.stopped is not None:
         store.set_status("finished", state.stopped)
@@ -486,12 +494,103 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
         store.set_status("paused", f"stopped after {done} new steps; resume to continue")
 
 
-def _progress(enabled: bool, total: int, initial: int):
-    if not enabled:
-        return None
-    from tqdm.auto import tqdm
+def _progress(enabled: bool, total: int, initial: int, mesh: Mesh, params) -> _Progress | None:
+    """The progress bar of a run of ``total`` steps from step ``initial`` (None unless
+    ``enabled``)."""
+    return _Progress(total, initial, mesh, params) if enabled else None
 
-    return tqdm(total=total, initial=initial, unit="step", desc="deflation", dynamic_ncols=True)
+
+class _Progress:
+    """A run's progress bar: the steps done out of the schedule's, and the last step's dV/V,
+    E/kappa, pressure in units of the classical buckling pressure p_c (the unit of the run
+    figure, :func:`shellbuckle.plots.run.plot_run`; at the step's gamma on a path in gamma),
+    and its shape and W (:func:`~shellbuckle.analysis.classify.classify_descriptors`, about
+    0.09 s a step at 3594 vertices, 2-4 % of a step of the main job). :meth:`close` with
+    ``ended`` sets the total to the steps done, so a run that ends early (self-contact, a
+    failure) ends at 100 %. While it is shown, log records are written above it."""
+
+    def __init__(self, total: int, initial: int, mesh: Mesh, params):
+        from tqdm.auto import tqdm
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        from .analysis.descriptors import ShapeAnalyzer
+
+        self.params = params
+        self.analyzer = ShapeAnalyzer(mesh.faces, n_vertices=mesh.n_vertices)
+        self.bar = tqdm(total=total, initial=initial, unit="step", desc="deflation",
+                        dynamic_ncols=True)
+        self.redirect = logging_redirect_tqdm(tqdm_class=tqdm)
+        self.redirect.__enter__()
+
+    def update(self, X, record: dict) -> None:
+        from .theory import classical_threshold
+
+        params = self.params if "gamma" not in record else self.params.with_gamma(
+            record["gamma"])
+        p_c = classical_threshold(params).pressure
+        self.bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} "
+                                 f"E/kappa={record['E_over_kappa']:.4g} "
+                                 f"p/p_c={record['pressure'] / p_c:.3f} {self._shape(X)}",
+                                 refresh=False)
+        self.bar.update(1)
+
+    def _shape(self, X) -> str:
+        from .analysis.classify import classify_descriptors
+
+        try:
+            found = classify_descriptors(self.analyzer.describe(X))
+        except Exception as exc:  # noqa: BLE001 - the bar never stops a run
+            log.debug("the progress bar could not classify the step: %s", exc)
+            return "shape=?"
+        return f"shape={found.shape} W={found.W}"
+
+    def close(self, ended: bool) -> None:
+        if ended:
+            self.bar.total = self.bar.n
+            self.bar.refresh()
+        self.bar.close()
+        self.redirect.__exit__(None, None, None)
+
+
+class _FoldWarnings(logging.Handler):
+    """Counts, in ``count``, the warnings of faces folded onto each other
+    (:func:`shellbuckle.protocol.deflate.folded_flat`) that shellbuckle logs in this thread
+    (runs of a sweep may share the process) while it is entered."""
+
+    TEXT = "folded onto each other"
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.count = 0
+        self.thread = threading.get_ident()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.thread == self.thread and self.TEXT in record.getMessage():
+            self.count += 1
+
+    def __enter__(self) -> _FoldWarnings:
+        logging.getLogger("shellbuckle").addHandler(self)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        logging.getLogger("shellbuckle").removeHandler(self)
+
+
+def _fold_verdict(k: int, record: dict) -> str:
+    """The closing line of a step that logged fold warnings: whether it still ended at a
+    proper minimum (converged, inertia 0: no negative eigenvalue of the constrained
+    Hessian)."""
+    inertia = record.get("inertia")
+    if not record.get("converged"):
+        return (f"step {k} did not converge to a minimum; the fold may remain in its stored "
+                "state (converged False in the table)")
+    if inertia is None or inertia < 0:
+        return (f"step {k} converged, but its inertia was not computed: whether it is a "
+                "minimum is not known")
+    if inertia > 0:
+        return (f"step {k} converged to a saddle point, not a minimum (inertia {inertia}: "
+                "negative eigenvalues of the constrained Hessian)")
+    return f"step {k} converged to a minimum (inertia 0); the fold was left behind"
 
 
 def shell_from_file(path) -> tuple[Mesh, dict]:

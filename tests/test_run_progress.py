@@ -1,0 +1,127 @@
+"""The progress bar of a run and the closing line of a step that logged fold warnings.
+
+Oracles: how the run ended (its status and the steps stored: a run that ends early ends at
+100 % with the total set to the steps done; a paused one shows the steps done out of the
+schedule's), the classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 = 4 sqrt(gamma) at
+kappa = R = 1 (Quilliet et al. 2008, eq. 3; the unit of the run figure), and the step's
+record (converged, inertia) for the closing line.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+
+import pytest
+
+from shellbuckle import run as run_mod
+from shellbuckle.analysis.classify import SHAPES
+from shellbuckle.mesh import icosphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.protocol import deflate as protocol_mod
+from shellbuckle.protocol.deflate import folded_flat
+
+GAMMA = 271.0
+
+
+def _deflate(tmp_path, **kw):
+    return run_mod.deflate(icosphere(2), ShellParameters.from_gamma(GAMMA), dv=0.05, until=0.3,
+                           seed=1, out=tmp_path / "run", locate=False, threads=1,
+                           progress=True, **kw)
+
+
+def _last_bar(err: str) -> str:
+    frames = [f for f in re.split(r"[\r\n]", err) if f.startswith("deflation:")]
+    return frames[-1]
+
+
+def _wrap_step(monkeypatch, after):
+    """protocol.step followed by ``after(state, record) -> (state, record)``."""
+    real = protocol_mod.step
+
+    def step(ctx, state):
+        return after(*real(ctx, state))
+
+    monkeypatch.setattr(protocol_mod, "step", step)
+
+
+def test_a_run_that_ends_before_its_schedule_ends_at_100_percent(tmp_path, monkeypatch,
+                                                                 capsys):
+    def contact_at_2(state, record):
+        if state.step == 2:
+            state = protocol_mod.state_after(2, state.X, record, "self-intersection (test)")
+        return state, record
+
+    _wrap_step(monkeypatch, contact_at_2)
+    run = _deflate(tmp_path)
+    assert run.status == "finished" and run.steps == [0, 1, 2]  # 2 of the schedule's 6
+    bar = _last_bar(capsys.readouterr().err)
+    assert "100%" in bar and "| 2/2 " in bar, bar
+    # the postfix: dV/V, E/kappa, p/p_c of step 2 and its shape and W
+    table = run.table.set_index("step")
+    values = dict(re.findall(r"([\w/]+)=(\S+?)[,\]\s]", bar))
+    assert float(values["dV/V"]) == pytest.approx(table.loc[2, "dV_over_V"], abs=5e-4)
+    p_c = 4.0 * math.sqrt(GAMMA)
+    assert float(values["p/p_c"]) == pytest.approx(table.loc[2, "pressure"] / p_c, abs=5e-4)
+    assert values["shape"] in SHAPES and int(values["W"]) >= 0
+
+
+def test_a_failed_run_ends_at_100_percent_a_paused_one_does_not(tmp_path, monkeypatch,
+                                                                capsys):
+    def fail_at_2(state, record):
+        if state.step == 2:
+            raise protocol_mod.LeftDomain(2, "a test")
+        return state, record
+
+    with monkeypatch.context() as m:
+        _wrap_step(m, fail_at_2)
+        with pytest.raises(protocol_mod.LeftDomain):
+            _deflate(tmp_path)
+    bar = _last_bar(capsys.readouterr().err)
+    assert "100%" in bar and "| 1/1 " in bar, bar
+    run = run_mod.resume(tmp_path / "run", progress=True, max_steps=2)
+    assert run.status == "paused" and run.steps == [0, 1, 2, 3]
+    bar = _last_bar(capsys.readouterr().err)
+    assert "| 3/6 " in bar and "100%" not in bar, bar
+
+
+def test_a_step_with_fold_warnings_ends_with_one_line_on_its_minimum(tmp_path, monkeypatch,
+                                                                      caplog):
+    mesh = icosphere(2)
+    hinges = mesh.topology.hinges
+    X = mesh.X.copy()
+    X[hinges[0, 3]] = X[hinges[0, 2]]  # the two faces of hinge 0 on each other
+    why = folded_flat(X, hinges)
+    assert why is not None and "folded onto each other" in why
+
+    real = protocol_mod.step
+
+    def step(ctx, state):
+        if state.step == 0:  # step 1 logs what the protocol logs when a fold stops Newton
+            logging.getLogger("shellbuckle.protocol.deflate").warning(
+                "step %d: no convergence (abandoned: %s) after a jiggle of std %.3g; "
+                "jiggling again with half of it", 1, why, 0.01)
+        return real(ctx, state)
+
+    monkeypatch.setattr(protocol_mod, "step", step)
+    with caplog.at_level(logging.WARNING, logger="shellbuckle"):
+        run = run_mod.deflate(mesh, ShellParameters.from_gamma(GAMMA), dv=0.05, until=0.1,
+                              seed=1, out=tmp_path / "run", locate=False, threads=1)
+    closing = [r.getMessage() for r in caplog.records if r.name == "shellbuckle.run"]
+    record = run.store.record(1)
+    assert record["converged"] and record["inertia"] == 0  # a certified minimum at step 1
+    assert closing == ["step 1 converged to a minimum (inertia 0); the fold was left behind"]
+
+
+@pytest.mark.parametrize("record, words", [
+    ({"converged": True, "inertia": 0}, "converged to a minimum (inertia 0)"),
+    ({"converged": False, "inertia": 0}, "did not converge"),
+    ({"converged": False, "inertia": None}, "did not converge"),
+    ({"converged": True, "inertia": 2}, "saddle point, not a minimum (inertia 2"),
+    ({"converged": True, "inertia": None}, "inertia was not computed"),
+    ({"converged": True, "inertia": -1}, "inertia was not computed"),
+])
+def test_the_closing_line_follows_the_record(record, words):
+    line = run_mod._fold_verdict(7, record)
+    assert line.startswith("step 7 ") and words in line and "\n" not in line
