@@ -553,11 +553,12 @@ class _Progress:
 
 
 class _FoldWarnings(logging.Handler):
-    """Counts, in ``count``, the warnings of faces folded onto each other
-    (:func:`shellbuckle.protocol.deflate.folded_flat`) that shellbuckle logs in this thread
-    (runs of a sweep may share the process) while it is entered."""
+    """Counts, in ``count``, the warnings of a folded mesh that shellbuckle logs in this
+    thread (runs of a sweep may share the process) while it is entered: faces folded onto
+    each other (:func:`shellbuckle.protocol.deflate.folded_flat`) or neighbouring faces
+    intersecting (``folded_locally``, ``only_local``), after which the step is jiggled again."""
 
-    TEXT = "folded onto each other"
+    TEXTS = ("folded onto each other", "a fold of the mesh", "(a fold)")
 
     def __init__(self):
         super().__init__(logging.WARNING)
@@ -565,7 +566,7 @@ class _FoldWarnings(logging.Handler):
         self.thread = threading.get_ident()
 
     def emit(self, record: logging.LogRecord) -> None:
-        if record.thread == self.thread and self.TEXT in record.getMessage():
+        if record.thread == self.thread and any(t in record.getMessage() for t in self.TEXTS):
             self.count += 1
 
     def __enter__(self) -> _FoldWarnings:
