@@ -1,7 +1,6 @@
 """The smooth imperfection: one field on the sphere whatever the mesh, with the requested
 spectrum and amplitude, reproducible by seed, and resumable in a run."""
 
-import inspect
 import json
 
 import numpy as np
@@ -258,9 +257,6 @@ def test_a_smooth_run_stores_its_option_and_resumes_bit_for_bit(tmp_path):
         np.testing.assert_array_equal(done.positions(k), full.positions(k))
 
 
-@pytest.mark.skipif("smooth_jiggle" not in inspect.signature(
-    __import__("shellbuckle.run", fromlist=["deflate"]).deflate).parameters,
-    reason="shellbuckle.run.deflate does not take smooth_jiggle yet")
 def test_deflate_command_runs_the_smooth_imperfection(tmp_path, monkeypatch):
     from shellbuckle.cli import main
 

@@ -53,6 +53,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
             c0: float | None = None, prerelax: bool = True, direct_return: bool = True,
+            smooth_jiggle: float | None = None, smooth_degree: int | None = None,
             out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None, threads: int | None = None,
@@ -68,7 +69,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     control: each step minimizes ``E + p V`` at free volume.
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
     instead of the initial mesh. The jiggle is Surface Evolver's at ``temperature`` (default
-    0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length; give at most one.
+    0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length, or the smooth
+    imperfection of rms ``smooth_jiggle`` (units of R) up to degree ``smooth_degree``
+    (:mod:`shellbuckle.protocol.imperfection`, the same field on any mesh); give at most one.
     ``max_iter`` bounds each minimization (Newton steps, i.e. factorizations, with Newton's
     method; iterations with the others): with ``method="cg"`` or ``"gd"``
     a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
@@ -101,6 +104,13 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
                    stop_at_contact=stop_at_contact, prerelax=prerelax,
                    direct_return=direct_return)
+    if smooth_jiggle is not None:  # the smooth imperfection replaces the per-vertex jiggle
+        options.update(smooth_jiggle=smooth_jiggle)
+        if smooth_degree is not None:
+            options.update(smooth_degree=smooth_degree)
+    elif smooth_degree is not None:
+        raise ValueError("smooth_degree needs smooth_jiggle (the amplitude of the smooth "
+                         "imperfection)")
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
@@ -234,14 +244,21 @@ def _branch_fields(parent: Run, step: int, options: dict) -> dict:
     """The protocol fields of a branch from step ``step``: the parent's, with ``options``
     replacing them and the c0 in force at that step (after a c0 path)."""
     base = parent.protocol
-    # a jiggle option left at None keeps the parent's; one given replaces the parent's other one
+    # a jiggle option left at None keeps the parent's; one given replaces the parent's others
+    kinds = {"jiggle": ("jiggle",), "temperature": ("temperature",),
+             "smooth": ("smooth_jiggle", "smooth_degree")}
     options = {k: v for k, v in options.items()
-               if not (k in ("jiggle", "temperature") and v is None)}
+               if not (k in ("jiggle", "temperature", "smooth_jiggle", "smooth_degree")
+                       and v is None)}
     fields = base.to_dict() | options
-    if "jiggle" in options and "temperature" not in options:
-        fields["temperature"] = None
-    elif "temperature" in options and "jiggle" not in options:
-        fields["jiggle"] = None
+    given = [kind for kind, names in kinds.items() if any(n in options for n in names)]
+    if len(given) == 1:
+        for kind, names in kinds.items():
+            for name in names if kind != given[0] else ():
+                if kind == "smooth":
+                    fields.pop(name, None)  # unset: to_dict leaves them out
+                else:
+                    fields[name] = None
     if base.control == "c0" and "c0" not in options:
         fields["c0"] = parent.c0_at(step)
     return fields

@@ -24,8 +24,6 @@ def report_run(run, *, plot: bool = False) -> int:
 
     points = located(run)
     if points:
-        from .locate import print_located
-
         print_located(run, points)
     if plot:
         from ..plots.run import plot_deflation
@@ -42,3 +40,25 @@ def print_json(value, indent=None) -> int:
 
     print(json.dumps(json_safe(value), indent=indent))
     return 0
+
+
+def print_located(run, points: dict) -> None:
+    """One line per located event: the step reading, the located value and the mechanism."""
+    if not points:
+        print(f"{run.path}: no buckling event to locate (the run stays a sphere)")
+        return
+    print("located events (dV/V; pressures in kappa/R^3):")
+    table = run.table.set_index("step")
+    for name, p in sorted(points.items(), key=lambda item: item[1]["lo"]):
+        old, new = p["old"], p["new"]
+        k = p["step"]
+        before = float(table.loc[k - 1, "dV_over_V"]) if k - 1 in table.index else float("nan")
+        print(f"  {name:<17} {p['dV_over_V']:.5f} ± {p['uncertainty']:.1e}   (the steps: "
+              f"between {before:.4f} and {p['step_dV_over_V']:.4f}, step {k})")
+        line = (f"  {'':<17} {old['shape']} -> {new['shape']}, E/kappa {old['E_over_kappa']:.5g} "
+                f"-> {new['E_over_kappa']:.5g}, p {old['pressure']:.5g} -> {new['pressure']:.5g}, "
+                f"lowest eigenvalue {old['lowest_eigenvalue']:.3g} -> "
+                f"{new['lowest_eigenvalue']:.3g}: {p['mechanism']}")
+        if not p.get("complete", True):
+            line += f"; incomplete: {p['failure']}"
+        print(line)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from ._checks import (RANGES, add_command, add_number, allowed, check_c0, check_mesh,
                       check_pressures, check_smooth_degree, check_steps, floats, input_file,
                       output_folder, typed)
+from .locate import add_locate_options, locate_arguments
 from ._options import (add_protocol_options, add_run_output_options, add_shell_options,
                        add_threads_option, default_gamma, params_from_args, protocol_defaults,
                        protocol_values)
@@ -60,6 +61,7 @@ def register(sub) -> None:
     parser.add_argument("--out", help="run folder (default runs/gamma..._nu..._seed..._TIME)")
     add_threads_option(parser)
     add_run_output_options(parser)
+    add_locate_options(parser)
     parser.set_defaults(func=_cmd)
 
 
@@ -77,6 +79,7 @@ def _cmd(args) -> int:
     from ..run import deflate
 
     options = _protocol(args)
+    located = locate_arguments(args)
     if args.out is not None:
         output_folder("--out", args.out, run=True)
     mesh, params, from_file = _shell(args, options.get("seed", protocol_defaults()["seed"]),
@@ -85,7 +88,8 @@ def _cmd(args) -> int:
     options.setdefault("c0", from_file.get("c0"))
     options = {k: v for k, v in options.items() if v is not None and k != "smooth_jiggle_d"}
     run = deflate(mesh, params, out=args.out, progress=not args.quiet,
-                  form_factors=from_file.get("form_factors"), threads=args.threads, **options)
+                  form_factors=from_file.get("form_factors"), threads=args.threads, **located,
+                  **options)
     from ._output import report_run
 
     return report_run(run, plot=not args.no_plot)
