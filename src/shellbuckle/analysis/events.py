@@ -18,7 +18,7 @@ pressure, energies and Hessian inertia:
     from which the shape is ``wrinkled`` for ``PERSISTENCE`` consecutive steps.
 ``inertia_change``
     every step where the number of negative eigenvalues of the constrained Hessian at the
-    accepted state (column ``inertia``, ``-1`` where not computed) differs from the previous
+    accepted state (column ``inertia``, missing where not computed) differs from the previous
     step's.
 
 Each event gives the step and its ``dV_over_V`` (the relative volume change reached at that
