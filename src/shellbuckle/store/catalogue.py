@@ -304,7 +304,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
         row.update(_parameters(point, meta), status=meta["status"], message=meta.get("message"))
         damaged = store.damaged  # left out of the table: say so where the sweep looks
         if damaged:
-            note = (f"damaged step(s) left out: "
+            note = ("damaged step(s) left out: "
                     + "; ".join(f"step {k}: {why}" for k, why in sorted(damaged.items())))
             row["message"] = f"{row['message']}; {note}" if row["message"] else note
         if last.get("outcome") == "failed" and meta["status"] not in ("finished", "failed"):

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-import pandas as pd
 
 from ..util import now
 
@@ -98,6 +97,15 @@ def _identity(meta: dict) -> dict:
             "mesh_sha256": meta["mesh"]["sha256"], "parent": parent}
 
 
+def _pandas_version() -> str:
+    """pandas' version without importing it (0.25 s) when a run has not needed it yet."""
+    if "pandas" in sys.modules:
+        return sys.modules["pandas"].__version__
+    from importlib.metadata import version
+
+    return version("pandas")
+
+
 def _versions() -> dict:
     # the modules' own version attributes: importlib.metadata scans the installed
     # distributions (about 5 ms a call, twice per run)
@@ -107,7 +115,7 @@ def _versions() -> dict:
 
     versions = {"python": sys.version.split()[0], "numpy": np.__version__,
                 "h5py": h5py.__version__, "hdf5": h5py.version.hdf5_version,
-                "pandas": pd.__version__, "shellbuckle": __version__,
+                "pandas": _pandas_version(), "shellbuckle": __version__,
                 "scipy": scipy.__version__}
     commit = source_commit()
     if commit:

@@ -93,9 +93,9 @@ import sys
 import uuid
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ..util import now
 from .atomic import (FileLock, atomic_write_bytes, fsync_folder, remove_temporaries,
@@ -117,6 +117,9 @@ from .steps import (_HDF5_SIGNATURE, _WARNED, DamagedStep, _attribute_value,  # 
                     _check_arrays, _check_name, _signature, _text_attribute, array_sha256,
                     damage_summary, read_step_file, step_checksums, step_file_bytes)
 from .table import _csv_cell, _integer_like, table_columns, table_csv, table_frame  # noqa: F401
+
+if TYPE_CHECKING:  # pandas is imported when a table is asked for
+    import pandas
 
 log = logging.getLogger(__name__)
 
@@ -664,7 +667,7 @@ class RunStore:
                 for k in stored if k not in damaged]
         return rows, table_columns(rows)
 
-    def table(self) -> pd.DataFrame:
+    def table(self) -> pandas.DataFrame:
         """The per-step table as a DataFrame, one row per finished step.
 
         Columns: SPEC §7 names in order (``step`` ... ``wall_s``, always present, NaN where a

@@ -16,12 +16,15 @@ from __future__ import annotations
 import csv
 import io
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from ..params import UNIT_SYSTEMS, unit_scale
 from .layout import _INTEGER_COLUMNS, ANALYSIS_COLUMNS, TABLE_COLUMNS
+
+if TYPE_CHECKING:  # pandas is imported when a table is asked for
+    import pandas as pd
 
 #: Values that stand for "not computed" in runs stored before missing values were stored as
 #: missing (the inertia of step 0 was -1): column -> predicate. They are read as missing.
@@ -53,6 +56,8 @@ def table_frame(rows: list[dict], columns: list[str]) -> pd.DataFrame:
     """The table of ``rows`` as a DataFrame: integer-valued integer columns as int64 (the
     nullable ``Int64`` where some rows lack them), empty SPEC §7 columns as float64."""
     rows = _without_placeholders(rows)
+    import pandas as pd  # imported when a table is asked for: a run's steps do not need it
+
     table = pd.DataFrame(rows, columns=columns)  # new dicts of scalars: no copy needed
     for column in columns:
         if column in _INTEGER_COLUMNS and _integer_like(table[column]):
@@ -90,6 +95,8 @@ def table_in_units(table: pd.DataFrame, params, units: str = "reduced") -> pd.Da
             raise ValueError("the run has no material: SI units need a run made from E, "
                              "sigma, d and R (ShellParameters.from_material)")
         return table
+    import pandas as pd
+
     out = table.copy()
     for column, dimension in COLUMN_DIMENSIONS.items():
         if column in out.columns:
