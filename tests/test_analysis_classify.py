@@ -331,6 +331,22 @@ def test_gamma_271_is_a_sphere_then_a_capsule(run_271):  # about 15 s
     assert (table["W"] == 0).all() and (table["n_dimples"] == (table.index >= drop)).all()
 
 
+def test_a_run_is_classified_the_same_from_its_folder_object_or_store(run_271):
+    from shellbuckle.analysis import classify_run
+
+    last = run_271.steps[-1]
+    results = [classify_run(x, steps=[0, last]) for x in (run_271, run_271.path, run_271.store)]
+    for k in (0, last):
+        expected = classify(run_271.positions(k), run_271.faces).columns()
+        for r in results:
+            assert r[k].columns() == pytest.approx(expected, nan_ok=True)
+    # a negative step counts from the last, as Run.step does
+    assert classify_run(run_271.path, steps=[-1])[-1].columns() == \
+        pytest.approx(results[0][last].columns(), nan_ok=True)
+    with pytest.raises(ValueError, match="expected a Run or a run folder, got int"):
+        classify_run(3)
+
+
 @pytest.mark.slow
 def test_gamma_271_stays_a_capsule_until_self_contact(tmp_path):  # about 5 min
     # Paper §4.3 and Fig. 7a: at gamma = 271 (d/R = 0.172) the shell buckles into one

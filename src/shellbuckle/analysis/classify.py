@@ -39,6 +39,7 @@ rims, as the paper's Fig. 4 does).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -194,10 +195,31 @@ RUN_COLUMNS = ("shape", "n_dimples", "corners", "W", "dent_depth", "dent_sagitta
                "asphericity", "contact_distance")
 
 
-def _run(run_or_path):
-    from ..store.view import Run  # imported when needed: it brings in the protocol
+def _store(run_or_path):
+    """The :class:`~shellbuckle.store.run.RunStore` of a :class:`shellbuckle.run.Run` (its
+    ``store``), a RunStore itself, or that of a run folder.
 
-    return Run.of(run_or_path)
+    Run-level analysis needs only the stored arrays, so it reads the folder through the plain
+    store, not through :class:`~shellbuckle.store.view.Run`: the run object can then classify
+    its own steps (:meth:`shellbuckle.run.Run.classify`) without an import circle
+    (tests/test_import_graph.py).
+    """
+    from ..store.run import RunStore
+
+    if isinstance(run_or_path, RunStore):
+        return run_or_path
+    if isinstance(getattr(run_or_path, "store", None), RunStore):
+        return run_or_path.store
+    if isinstance(run_or_path, (str, bytes, os.PathLike)):
+        return RunStore.open(run_or_path)
+    raise ValueError(f"expected a Run or a run folder, got {type(run_or_path).__name__}")
+
+
+def _stored_step(store, k) -> int:
+    """Step ``k`` of ``store``, a negative ``k`` counted from the last finished step."""
+    steps = store.steps
+    k = int(k)
+    return steps[k] if -len(steps) <= k < 0 else k
 
 
 def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
@@ -206,15 +228,16 @@ def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
     ``run_or_path``: a :class:`shellbuckle.run.Run` or a run folder. ``steps``: the steps to
     classify (default all finished steps). Returns ``{step: Classification}``.
     """
-    run = _run(run_or_path)
-    steps = list(run.steps) if steps is None else [int(k) for k in steps]
-    analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.store.X0))
+    store = _store(run_or_path)
+    steps = list(store.steps) if steps is None else [int(k) for k in steps]
+    analyzer = ShapeAnalyzer(store.faces, n_vertices=len(store.X0))
     iterator = steps
     if progress:
         from tqdm.auto import tqdm
 
         iterator = tqdm(steps, unit="step", desc="analysis", dynamic_ncols=True)
-    return {k: classify_descriptors(analyzer.describe(run.positions(k))) for k in iterator}
+    return {k: classify_descriptors(analyzer.describe(store.positions(_stored_step(store, k))))
+            for k in iterator}
 
 
 def analyze_run(run_or_path, steps=None, progress: bool = False):
@@ -226,9 +249,9 @@ def analyze_run(run_or_path, steps=None, progress: bool = False):
     pandas DataFrame) with the columns filled in. ``steps`` restricts the work to some steps
     (default: all finished steps, refreshing earlier results).
     """
-    run = _run(run_or_path)
-    results = classify_run(run, steps=steps, progress=progress)
-    run.store.update_analysis({k: {**json_safe(c.columns()),
-                                   "analysis_version": ANALYSIS_VERSION}
-                               for k, c in results.items()})
-    return run.table
+    store = _store(run_or_path)
+    results = classify_run(store, steps=steps, progress=progress)
+    store.update_analysis({_stored_step(store, k): {**json_safe(c.columns()),
+                                                    "analysis_version": ANALYSIS_VERSION}
+                           for k, c in results.items()})
+    return store.table()
