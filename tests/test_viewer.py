@@ -152,6 +152,22 @@ def test_cli_view(run, tmp_path, capsys):
     assert main(["view", str(tmp_path / "missing")]) == 2
 
 
+def test_page_opens_at_the_step_asked(run, tmp_path, capsys):
+    steps = run.steps
+    # by default the last step; a step number or a negative index counted from the last
+    assert steps[_data(html_page(run))["start"]] == steps[-1]
+    assert steps[_data(html_page(run, step=1))["start"]] == 1
+    assert steps[_data(html_page(run, step=-2))["start"]] == steps[-2]
+    with pytest.raises(ValueError, match="allowed steps"):
+        html_page(run, step=len(steps) + 5)
+    out = tmp_path / "v.html"
+    assert main(["view", str(run.path), "--out", str(out), "--step", "0"]) == 0
+    assert steps[_data(out.read_text(encoding="utf-8"))["start"]] == 0
+    capsys.readouterr()
+    assert main(["view", str(run.path), "--out", str(out), "--step", "99"]) == 2
+    assert "--step 99" in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------------------ headless Chromium
 def _chromium(tmp_path, url, *extra):
     profile = tmp_path / "profile"

@@ -1,8 +1,10 @@
-"""``shellbuckle view DIR [--out FILE.html] [--color C]``: an interactive page of a run."""
+"""``shellbuckle view DIR [--out FILE.html] [--color C] [--step K]``: an interactive page of a
+run."""
 
 from __future__ import annotations
 
-from ._checks import add_command, output_file, run_folder
+from ._checks import add_command, add_number, output_file, run_folder
+from ._options import stored_step
 
 
 def register(sub) -> None:
@@ -20,6 +22,8 @@ def register(sub) -> None:
                         help="page to write (default DIR/view.html)")
     parser.add_argument("--color", default="curvature",
                         help="initial colouring: curvature (default), strain or bending")
+    add_number(parser, "--step", "step", "step the page opens at (negative counts from the "
+               "last; default -1)", metavar="K")
     parser.set_defaults(func=_cmd)
 
 
@@ -32,6 +36,7 @@ def _cmd(args) -> int:
     run = run_folder("DIR", args.dir)
     out = Path(args.out) if args.out else run.path / "view.html"
     output_file("--out", out, suffixes=(".html", ".htm"))
-    path = write_html(run, out, color=args.color)
+    step = stored_step(run, -1 if args.step is None else args.step)
+    path = write_html(run, out, color=args.color, step=step)
     print(f"{path} ({path.stat().st_size / 1e6:.2f} MB, {len(run.steps)} steps)")
     return 0
