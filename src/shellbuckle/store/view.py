@@ -3,8 +3,13 @@
 :class:`~shellbuckle.store.run.RunStore` reads and writes a run folder in plain values;
 :class:`Run` gives them as :class:`~shellbuckle.params.ShellParameters`,
 :class:`~shellbuckle.protocol.deflate.Protocol`, a table and meshes, and resolves step indices
-(:meth:`Run.step`). It lives here, below the analysis and the run drivers of
-:mod:`shellbuckle.run` (which re-exports it), so that both can open a run folder.
+(:meth:`Run.step`). It lives here, below the run-level analysis and the run drivers of
+:mod:`shellbuckle.run` (which re-exports it), so that both can open a run folder. Its own
+:meth:`Run.classify`, :meth:`Run.plot`, :meth:`Run.pv` and :meth:`Run.view` import, when
+called, modules that do not import this one (the classifier, which opens run folders through
+the plain :class:`~shellbuckle.store.run.RunStore`; the figures and
+:mod:`shellbuckle.plots.viewer_page`, which take the run object they are given), so no import
+circle closes (tests/test_import_graph.py).
 """
 
 from __future__ import annotations
@@ -122,9 +127,49 @@ class Run:
     def mesh(self, k: int = -1) -> Mesh:
         return Mesh.from_arrays(self.positions(k), self.store.faces)
 
-    # ---------------------------------------------------------------- figures
+    # ------------------------------------------------------- analysis and figures
     # imported inside the methods: the figures load matplotlib, and the modules they use do
     # not import this one (tests/test_import_graph.py)
+
+    def classify(self, k: int = -1):
+        """The classification of step ``k`` (:meth:`step`: negative counts from the last):
+        a :class:`~shellbuckle.analysis.classify.Classification` with ``shape``, ``n_dimples``,
+        ``corners``, ``W``, the dent's depth and ``dent_axis``, the rim and its spectrum and
+        the descriptors, the same as ``shellbuckle classify DIR --step K`` prints. Nothing
+        is written.
+
+        The stored analysis (``analysis.json``, :func:`~shellbuckle.analysis.analyze_run`)
+        holds only the table's columns, without the dent axis, the rim spectrum or the
+        descriptors, so the step is classified from its positions (0.1 s at 3594 vertices);
+        where that analysis is current its columns are the same numbers
+        (tests/test_run_object.py).
+        """
+        from ..analysis.classify import classify
+
+        return classify(self.positions(k), self.faces)
+
+    def view(self, k: int = -1, color: str = "curvature", path=None, *,
+             inline: bool | None = None, open_browser: bool = True, height: int = 760):
+        """The interactive viewer of ``shellbuckle view`` (every stored step, a slider, the
+        table and curves), opening at step ``k``; ``color``: ``curvature``, ``strain`` or
+        ``bending`` (:mod:`shellbuckle.plots.viewer`).
+
+        Returns a :class:`~shellbuckle.plots.viewer_page.ViewerPage`. In Jupyter (``inline``
+        None: when running in a Jupyter kernel) the notebook shows it inline, an iframe
+        holding the whole page (nothing served or fetched), and nothing is written unless
+        ``path`` is given. Elsewhere (or ``inline=False``) the page is written to ``path``
+        (default ``DIR/view.html``, as the command), opened in the web browser unless
+        ``open_browser`` is False, and its file is the result's ``path``.
+        """
+        from ..plots.viewer_page import ViewerPage, in_notebook, page_of
+
+        page = ViewerPage(page_of(self, color, k), height=height)
+        inline = in_notebook() if inline is None else bool(inline)
+        if path is not None or not inline:
+            page.write(self.path / "view.html" if path is None else path)
+        if not inline and open_browser:
+            page.open()
+        return page
 
     def plot(self, path=None, step: int = -1):
         """The run figure ``shellbuckle deflate`` draws at the end (E/kappa and p/p_c against
