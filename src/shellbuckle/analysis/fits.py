@@ -90,10 +90,31 @@ class PowerLawFit:
         than parameters (the residual scatter)."""
         return math.isfinite(self.prefactor_err)
 
+    @property
+    def n_parameters(self) -> int:
+        """Parameters fitted: the prefactor, and the exponent unless it was fixed."""
+        return 1 if self.fixed_exponent else 2
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom of the fit, ``n - n_parameters`` (0: the line goes through the
+        points and, unweighted, has no error estimate)."""
+        return self.n - self.n_parameters
+
+    def describe(self) -> str:
+        """:meth:`__str__` with the degrees of freedom and where the errors come from, as a
+        figure's legend gives it: ``2.80(±0.15) γ^-0.55(±0.02); 7 points, 5 dof``,
+        ``... ; 2 points, 0 dof, errors from the seeds' scatter`` (weighted), or
+        ``5.404 γ^-0.587 (no error estimate: 2 point(s) for 2 parameter(s), 0 dof)``."""
+        if not self.has_error:
+            return str(self)
+        source = ", errors from the seeds' scatter" if self.weighted else ""
+        return f"{self}; {self.n} points, {self.dof} dof{source}"
+
     def __str__(self) -> str:
         a = _with_error(self.prefactor, self.prefactor_err)
         note = "" if self.has_error else (f", no error estimate: {self.n} point(s) for "
-                                          f"{1 if self.fixed_exponent else 2} parameter(s)")
+                                          f"{self.n_parameters} parameter(s), {self.dof} dof")
         if self.fixed_exponent:
             return f"{a} γ^{self.exponent:g} (exponent fixed{note})"
         return f"{a} γ^{_with_error(self.exponent, self.exponent_err)}" + (
