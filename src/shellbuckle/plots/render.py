@@ -67,8 +67,8 @@ import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-__all__ = ["CURVATURE_LIMIT", "DEFAULT_VIEW", "LIGHT", "Rendering", "camera_frame", "render",
-           "render_figure"]
+__all__ = ["CURVATURE_LIMIT", "DEFAULT_VIEW", "LEGEND_LOCATIONS", "LIGHT", "Rendering",
+           "camera_frame", "drawn_points", "place_legend", "render", "render_figure"]
 
 log = logging.getLogger(__name__)
 
@@ -308,3 +308,99 @@ def render_figure(X, faces, *, size: float = COLUMN_WIDTH, title: str | None = N
         fig.text(0.5 * side / size, 1.0 - 0.5 * top / height, title, ha="center",
                  va="center", fontsize=9)
     return fig
+
+
+# ---------------------------------------------------------------------- legends off the data
+
+#: Where :func:`place_legend` tries a legend inside its axes, in this order.
+LEGEND_LOCATIONS = ("upper left", "upper right", "lower right", "lower left", "center right",
+                    "center left", "upper center", "lower center")
+
+
+def _layout(fig):
+    """The renderer of ``fig`` after its layout (axes at their final places), on an Agg
+    canvas (attached when the figure has none)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    fig.draw_without_rendering()
+    return fig.canvas.get_renderer()
+
+
+def _along(P: np.ndarray, step: float) -> np.ndarray:
+    """The points ``P (n, 2)`` and points every ``step`` along the segments between them
+    (skipping segments with a non-finite end)."""
+    a, b = P[:-1], P[1:]
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = a[ok], b[ok]
+    counts = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / step).astype(int), 1)
+    seg = np.repeat(np.arange(len(a)), counts)
+    t = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)) / counts[seg]
+    return np.concatenate([P[np.isfinite(P).all(axis=1)], a[seg] + t[:, None] * (b - a)[seg]])
+
+
+def drawn_points(ax, step: float = 2.0) -> np.ndarray:
+    """Display coordinates ``(n, 2)`` (pixels) of what the 2D axes ``ax`` draws as data, inside
+    its box: the vertices of every visible line, and points every ``step`` pixels along its
+    segments when it is drawn as a line; the segments of line collections (error bars); the
+    offsets of scattered markers. Valid after the figure's layout."""
+    from matplotlib.collections import LineCollection, PathCollection
+
+    pieces = [np.zeros((0, 2))]
+    for line in ax.get_lines():
+        P = np.asarray(line.get_xydata(), float)
+        if not line.get_visible() or not len(P):
+            continue
+        P = line.get_transform().transform(P)
+        joined = line.get_linestyle() not in ("None", "", " ") and len(P) > 1
+        pieces.append(_along(P, step) if joined else P[np.isfinite(P).all(axis=1)])
+    for collection in ax.collections:
+        if not collection.get_visible():
+            continue
+        if isinstance(collection, LineCollection):
+            for segment in collection.get_segments():
+                if len(segment):
+                    pieces.append(_along(collection.get_transform().transform(segment), step))
+        elif isinstance(collection, PathCollection):
+            offsets = np.asarray(collection.get_offsets(), float)
+            pieces.append(collection.get_offset_transform().transform(offsets))
+    P = np.concatenate(pieces)
+    box = ax.get_window_extent()
+    inside = ((P[:, 0] >= box.x0) & (P[:, 0] <= box.x1) & (P[:, 1] >= box.y0)
+              & (P[:, 1] <= box.y1))
+    return P[inside]
+
+
+def place_legend(ax, *, outside: bool = True, pad: float = 4.0, **options):
+    """Add the legend of the 2D axes ``ax`` where it covers no data, and return it.
+
+    ``loc="best"`` lets a legend cover data when the data fill the axes. Here each place of
+    :data:`LEGEND_LOCATIONS` is tried in turn, after the figure's layout, and the first whose
+    box grown by ``pad`` points holds none of :func:`drawn_points` and overlaps no text of the
+    axes is kept. When none is free the legend goes beside the axes with ``outside``
+    (right, top-aligned: a constrained layout makes room for it; a figure with fixed margins
+    must leave it), else where it covers the fewest points. Call it once the axes hold all
+    their data and limits. ``options`` go to :meth:`matplotlib.axes.Axes.legend`."""
+    renderer = _layout(ax.figure)
+    points = drawn_points(ax)
+    texts = [t.get_window_extent(renderer) for t in ax.texts
+             if t.get_visible() and t.get_text().strip()]
+    options.setdefault("borderaxespad", 0.4)
+    legend = ax.legend(**options)
+    grow = pad * ax.figure.dpi / 72.0
+    covered = {}
+    for loc in LEGEND_LOCATIONS:
+        legend.set_loc(loc)
+        box = legend.get_window_extent(renderer).padded(grow)
+        covered[loc] = (box.count_contains(points)
+                        + 10 ** 6 * sum(box.overlaps(t) for t in texts))
+        if covered[loc] == 0:
+            return legend
+    if outside:
+        legend.set_loc("upper left")
+        legend.set_bbox_to_anchor((1.02, 1.0), transform=ax.transAxes)
+        legend.borderaxespad = 0.0
+    else:
+        legend.set_loc(min(covered, key=covered.get))
+    return legend
