@@ -8,8 +8,9 @@ with arrows along it showing the direction of the path: deflation (dV/V growing)
 re-inflation (dV/V shrinking); a deflation and a re-inflation through the same volumes that
 do not retrace each other show the hysteresis of the buckling. The pressure is in units of
 the classical buckling pressure ``p_c = 4 sqrt(f kappa A)/R^2``
-(:func:`shellbuckle.theory.classical_threshold`; ``f`` the energy convention's factor), with
-the uniformly shrunk sphere's pressure for reference.
+(:func:`shellbuckle.theory.classical_threshold`; ``f`` the energy convention's factor), as in
+the run figure (:func:`shellbuckle.plots.run.pressure_unit`), or in Pa with ``units="si"``
+for a run made from a material, with the uniformly shrunk sphere's pressure for reference.
 
 This module works on :class:`~shellbuckle.run.Run` objects and opens the branches it finds
 with the class of the run it is given, so the Run itself can draw the figure
@@ -23,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import theory
+from .render import place_legend
+from .run import check_units, p_c_label, pressure_unit
 
 __all__ = ["family", "plot_pv"]
 
@@ -79,20 +82,23 @@ def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
                                     mutation_scale=11, shrinkA=0, shrinkB=0))
 
 
-def plot_pv(runs, path=None, *, theory_curve: bool = True):
+def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced"):
     """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
-    as p/p_c against dV/V, each with arrows in the direction of its path and labelled
-    with its folder name and direction; the first run's parameters set ``p_c`` and the title.
-    Saved to ``path`` (PNG, or PDF by the suffix) when given; returns the
-    :class:`~matplotlib.figure.Figure`."""
+    as p/p_c against dV/V (``units="si"``: p in Pa, for runs made from a material), each with
+    arrows in the direction of its path and labelled with its folder name and direction; the
+    first run's parameters set ``p_c`` and the title. The legend is placed off the data
+    (:func:`~shellbuckle.plots.render.place_legend`). Saved to ``path`` (PNG, or PDF by the
+    suffix) when given; returns the :class:`~matplotlib.figure.Figure`."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     runs = [runs] if hasattr(runs, "table") else list(runs)
     if not runs:
         raise ValueError("plot_pv needs at least one run")
+    for run in runs:
+        check_units(units, run.params)
     params = runs[0].params
-    p_c = theory.classical_threshold(params).pressure
+    p_unit, label = pressure_unit(params, units)
     fig = Figure(figsize=(5.0, 3.8), constrained_layout=True)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
@@ -100,26 +106,28 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True):
     for i, run in enumerate(runs):
         table = run.table
         x = np.asarray(table["dV_over_V"], float)
-        y = np.asarray(table["pressure"], float) / p_c
+        y = np.asarray(table["pressure"], float) / p_unit
         if not len(x):
             continue
         color = f"C{i % 10}"
-        ax.plot(x, y, "o-", ms=3, lw=1.0, color=color,
+        ax.plot(x, y, "o-", ms=3, lw=1.0, color=color, gid=f"pv:{Path(run.path).name}",
                 label=f"{Path(run.path).name} ({_direction(x)})")
         _arrows(ax, x, y, color)
         xmax = max(xmax, float(np.nanmax(x)))
     xmax *= 1.05
     if theory_curve:
         grid = np.linspace(0.0, min(xmax, 0.999), 300)
-        ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_c, "--", color="0.5",
-                lw=0.8, label="uniformly shrunk sphere")
-    ax.axhline(1.0, color="0.3", lw=0.6, ls=":")
-    ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax),
-           ylabel=r"pressure $p/p_c$,  $p_c = 4\sqrt{f\kappa A}/R^2$ (classical buckling)")
+        ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_unit, "--", color="0.5",
+                lw=0.8, label="uniformly shrunk sphere", gid="pressure_sphere")
+    ax.axhline(theory.classical_threshold(params).pressure / p_unit, color="0.3", lw=0.6,
+               ls=":", gid="p_c")  # p_c: defined by the axis label (reduced) or the title
+    ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax), ylabel=label)
     ax.yaxis.label.set_size(8)
-    ax.legend(frameon=False, fontsize=7)
     ax.set_title(rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
-                 + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"), fontsize=9)
+                 + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")
+                 + ("" if units == "reduced" else "; dotted: " + p_c_label(params, units)),
+                 fontsize=9)
+    place_legend(ax, frameon=False, fontsize=7)
     if path is not None:
         fig.savefig(path, dpi=200)
     return fig

@@ -2,6 +2,13 @@
 
 All figures use matplotlib's Agg backend (no display needed) and are saved as PNG, or PDF when
 the path ends in ``.pdf``.
+
+Units (``units=``): ``"reduced"`` (default) draws energies as E/kappa, pressures as p/p_c
+(the classical buckling pressure ``p_c = 4 sqrt(f kappa A)/R^2``, the unit of every figure
+that shows a pressure, :func:`pressure_unit`), lengths in R and curvatures in 1/R; ``"si"``,
+for a run made from a material (:meth:`~shellbuckle.params.ShellParameters.from_material`,
+E in Pa, d and R in m), draws energies in J, pressures in Pa, lengths in m and curvatures in
+1/m (:func:`shellbuckle.params.unit_scale`: kappa, kappa/R^3, R).
 """
 
 from __future__ import annotations
@@ -9,6 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import theory
+from ..params import UNIT_SYSTEMS, unit_scale
+from .render import DEFAULT_VIEW, place_legend, render
+
+#: The run figure's 3D panel: the camera's angle from the dent axis, degrees
+#: (:func:`shellbuckle.plots.render.render`'s ``tilt``; negative: below the axis, so the
+#: opening of the bowl is in the upper half of the picture, a three-quarter view into it).
+VIEW_TILT = -55.0
 
 
 def _pyplot():
@@ -20,53 +34,48 @@ def _pyplot():
     return plt
 
 
-def render_surface(ax, X, faces, values=None, *, cmap="coolwarm", elev=20.0, azim=-60.0,
-                   axis=None, vlim=None, label=None):
-    """Draw a triangulated surface on a 3D axis, faces coloured by per-vertex ``values``.
-
-    The view is fixed and documented: the camera looks from elevation ``elev`` and azimuth
-    ``azim`` (degrees, matplotlib's convention) after the shape is rotated so that ``axis``
-    (e.g. the dent axis) points along +z; with ``axis=None`` the shape is drawn as stored.
-    ``vlim`` is the symmetric colour limit (default: the 98th percentile of ``|values|``).
-    """
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
-    plt = _pyplot()
-    X = np.asarray(X, float) - np.asarray(X, float).mean(axis=0)
-    if axis is not None:
-        X = X @ _rotation_to_z(np.asarray(axis, float)).T
-    tri = X[faces]
-    shade = None
-    if values is not None:
-        face_values = np.asarray(values, float)[faces].mean(axis=1)
-        lim = vlim if vlim is not None else float(np.percentile(np.abs(face_values), 98)) or 1.0
-        norm = plt.Normalize(-lim, lim)
-        colors = plt.get_cmap(cmap)(norm(face_values))
-        shade = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    else:
-        colors = (0.75, 0.78, 0.85, 1.0)
-    collection = Poly3DCollection(tri, facecolors=colors, edgecolors=(0, 0, 0, 0.08),
-                                  linewidths=0.2)
-    ax.add_collection3d(collection)
-    r = np.abs(X).max()
-    ax.set(xlim=(-r, r), ylim=(-r, r), zlim=(-r, r))
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(elev=elev, azim=azim)
-    ax.set_axis_off()
-    if shade is not None and label:
-        plt.colorbar(shade, ax=ax, shrink=0.6, pad=0.02, label=label)
-    return collection
+def check_units(units: str, params) -> str:
+    """``units`` if the figures of a run with ``params`` can be drawn in it: one of
+    :data:`~shellbuckle.params.UNIT_SYSTEMS`, and ``"si"`` only for a shell made from a
+    material. ``ValueError`` naming the reason otherwise."""
+    if units not in UNIT_SYSTEMS:
+        raise ValueError(f"units must be one of {', '.join(UNIT_SYSTEMS)}, got {units!r}")
+    if units == "si" and not params.is_material:
+        raise ValueError("units 'si' need a run made from a material (E, sigma, d, R); this "
+                         f"shell is given by gamma = {params.gamma:g} alone, in units of "
+                         "kappa and R")
+    return units
 
 
-def _rotation_to_z(axis):
-    """Rotation matrix taking the unit vector along ``axis`` to +z (Rodrigues)."""
-    a = axis / np.linalg.norm(axis)
-    z = np.array([0.0, 0.0, 1.0])
-    v, c = np.cross(a, z), float(a @ z)
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+def energy_unit(params, units: str = "reduced") -> tuple[float, str]:
+    """``(scale, axis label)`` of the energies drawn: E/kappa times ``scale`` (1, or kappa in
+    J for ``"si"``)."""
+    if check_units(units, params) == "si":
+        return unit_scale(params, "energy"), r"elastic energy $E$ (J)"
+    return 1.0, r"elastic energy $E/\kappa$"
+
+
+def pressure_unit(params, units: str = "reduced") -> tuple[float, str]:
+    """``(p_unit, axis label)``: the figures draw ``pressure / p_unit``, a pressure in the
+    run's units (as stored). Reduced: ``p_unit`` is the classical buckling pressure
+    ``p_c = 4 sqrt(f kappa A)/R^2`` (:func:`shellbuckle.theory.classical_threshold`), the one
+    pressure unit of the run figure, the p-V figure and the progress bar; ``"si"``: 1 (the
+    stored pressure of a material run is in Pa)."""
+    if check_units(units, params) == "si":
+        return 1.0, r"pressure $p$ (Pa)"
+    return (theory.classical_threshold(params).pressure,
+            r"pressure $p/p_c$,  $p_c = 4\sqrt{f\kappa A}/R^2$ (classical buckling)")
+
+
+def p_c_label(params, units: str = "reduced") -> str:
+    """The legend of the classical threshold's line: its formula and value, in the
+    table's unit kappa/R^3 (reduced) or in Pa."""
+    p_c = theory.classical_threshold(params).pressure
+    f = "" if params.bending_factor == 1 else f"{params.bending_factor:g}"
+    if check_units(units, params) == "si":
+        return rf"classical $p_c=4\sqrt{{{f}\kappa A}}/R^2$ = {p_c:.3g} Pa"
+    return (rf"classical $p_c=4\sqrt{{{f}\kappa A}}/R^2$ = "
+            rf"{p_c / unit_scale(params, 'pressure'):.3g} $\kappa/R^3$")
 
 
 def view_axis(X, faces):
@@ -83,15 +92,68 @@ def view_axis(X, faces):
     return None if axis is None else np.asarray(axis, float)
 
 
-def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, axis=None):
-    """Three panels: E/kappa vs dV/V with U_sphere and U_axisym; pressure vs dV/V with the
-    shrunk-sphere pressure and the classical threshold p_c; the last conformation in 3D,
-    coloured by ``curvature`` (per-vertex mean curvature H, or None).
+def _energy_panel(ax, table, params, grid, xmax, units):
+    """E (E/kappa, or J) of the table and of the theory's shrunk sphere and inverted cap."""
+    scale, label = energy_unit(params, units)
+    kappa = params.kappa
+    ax.plot(grid, theory.U_sphere_exact(grid, params) / kappa * scale, "--", color="0.4",
+            label=r"$U_{sphere}$ (exact, uniform shrink)", gid="U_sphere_exact")
+    ax.plot(grid[1:], theory.U_axisym_of_dV(grid[1:], params) / kappa * scale, ":",
+            color="C3", label=r"$U_{axisym}$ (inverted cap)", gid="U_axisym")
+    E = np.asarray(table["E_over_kappa"], float) * scale
+    ax.plot(np.asarray(table["dV_over_V"], float), E, "o-", ms=3, color="C0",
+            label="simulation", gid="simulation")
+    ax.set(xlabel=r"$\Delta V/V$", ylabel=label, xlim=(0, xmax),
+           ylim=(0, 1.15 * max(float(np.nanmax(E)), scale)))
 
-    ``table`` is a run's per-step DataFrame (columns ``dV_over_V``, ``E_over_kappa``,
-    ``pressure``); ``params`` a :class:`~shellbuckle.params.ShellParameters`; ``axis``: the
-    direction the 3D view looks from (:func:`view_axis`; None: the shape as stored).
+
+def _pressure_panel(ax, table, params, grid, xmax, units):
+    """The pressure (p/p_c, or Pa) of the table, of the shrunk sphere and p_c."""
+    p_unit, label = pressure_unit(params, units)
+    p_c = theory.classical_threshold(params).pressure / p_unit
+    ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_unit, "--", color="0.4",
+            label="uniformly shrunk sphere", gid="pressure_sphere")
+    ax.axhline(p_c, color="C3", lw=0.8, label=p_c_label(params, units), gid="p_c")
+    p = np.asarray(table["pressure"], float) / p_unit
+    ax.plot(np.asarray(table["dV_over_V"], float), p, "o-", ms=3, color="C0",
+            label="simulation", gid="simulation")
+    ax.set(xlabel=r"$\Delta V/V$", ylabel=label, xlim=(0, xmax))
+    ax.yaxis.label.set_size(8)
+    ax.set_ylim(min(0.0, float(np.nanmin(p)) * 1.1), max(1.3 * p_c, 1.1 * float(np.nanmax(p))))
+
+
+def _shape_panel(ax, X, faces, curvature, axis, units, params):
+    """The conformation seen from out of its dent (``axis``; the default view without one),
+    in R and 1/R (reduced) or m and 1/m, coloured by ``curvature`` when given."""
+    length = unit_scale(params, "length") if units == "reduced" else 1.0
+    X = np.asarray(X, float) / length
+    rendering = render(ax, X, faces, color_by="none" if curvature is None else "mean_curvature",
+                       values=None if curvature is None else np.asarray(curvature) * length,
+                       view="dent" if axis is not None else DEFAULT_VIEW, axis=axis,
+                       tilt=VIEW_TILT if axis is not None else 0.0)
+    if rendering.mappable is not None:
+        unit = "1/R" if units == "reduced" else "1/m"
+        ax.figure.colorbar(rendering.mappable, ax=ax, shrink=0.6, pad=0.02,
+                           label=rf"mean curvature $H$ ({unit})")
+    ax.rendering = rendering
+    return rendering
+
+
+def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, axis=None,
+             units: str = "reduced"):
+    """Three panels: the elastic energy vs dV/V with U_sphere and U_axisym; the pressure vs
+    dV/V with the shrunk-sphere pressure and the classical threshold p_c; the last
+    conformation in 3D, coloured by ``curvature`` (per-vertex mean curvature H, or None).
+
+    ``table`` is a run's per-step DataFrame (columns ``step``, ``dV_over_V``,
+    ``E_over_kappa``, ``pressure``, as stored); ``params`` a
+    :class:`~shellbuckle.params.ShellParameters`; ``axis``: the direction the 3D view looks
+    from (:func:`view_axis`; None: the default view). ``units``: ``"reduced"`` (E/kappa, p/p_c,
+    1/R) or ``"si"`` (J, Pa, m, 1/m; a run made from a material) — module docstring. The
+    legends are placed off the data (:func:`~shellbuckle.plots.render.place_legend`) once
+    every panel is drawn. The 3D axis carries the ``Rendering`` (``fig.axes[2].rendering``).
     """
+    check_units(units, params)
     plt = _pyplot()
     fig = plt.figure(figsize=(13.5, 4.2), constrained_layout=True)
     ax_e = fig.add_subplot(1, 3, 1)
@@ -100,52 +162,36 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, 
     x = np.asarray(table["dV_over_V"], float)
     xmax = max(float(np.nanmax(x)) if len(x) else 0.0, 0.05) * 1.05
     grid = np.linspace(0.0, min(xmax, 0.999), 400)
-    kappa = params.kappa
-    ax_e.plot(grid, theory.U_sphere_exact(grid, params) / kappa, "--", color="0.4",
-              label=r"$U_{sphere}$ (exact, uniform shrink)")
-    ax_e.plot(grid[1:], theory.U_axisym_of_dV(grid[1:], params) / kappa, ":", color="C3",
-              label=r"$U_{axisym}$ (inverted cap)")
-    ax_e.plot(x, np.asarray(table["E_over_kappa"], float), "o-", ms=3, color="C0",
-              label="simulation")
-    ax_e.set(xlabel=r"$\Delta V/V$", ylabel=r"$E/\kappa$", xlim=(0, xmax),
-             ylim=(0, 1.15 * max(float(np.nanmax(table["E_over_kappa"])), 1.0)))
-    ax_e.legend(frameon=False, fontsize=8)
-    threshold = theory.classical_threshold(params)
-    p_scale = threshold.pressure
-    ax_p.plot(grid, theory.pressure_sphere_exact(grid, params) / p_scale, "--", color="0.4",
-              label="uniformly shrunk sphere")
-    ax_p.axhline(1.0, color="C3", lw=0.8,
-                 label=r"classical $p_c=4\sqrt{\kappa A}/R^2$" if params.bending_factor == 1
-                 else rf"classical $p_c=4\sqrt{{{params.bending_factor:g}\kappa A}}/R^2$")
-    ax_p.plot(x, np.asarray(table["pressure"], float) / p_scale, "o-", ms=3, color="C0",
-              label="simulation")
-    ax_p.set(xlabel=r"$\Delta V/V$", ylabel=r"pressure $p/p_c$", xlim=(0, xmax))
-    top = float(np.nanmax(np.abs(np.asarray(table["pressure"], float)))) / p_scale
-    ax_p.set_ylim(min(0.0, float(np.nanmin(table["pressure"])) / p_scale * 1.1),
-                  max(1.3, 1.1 * top))
-    ax_p.legend(frameon=False, fontsize=8)
-    render_surface(ax_s, X, faces, curvature, axis=axis, elev=35.0,
-                   label=r"mean curvature $H$" if curvature is not None else None)
+    _energy_panel(ax_e, table, params, grid, xmax, units)
+    _pressure_panel(ax_p, table, params, grid, xmax, units)
+    _shape_panel(ax_s, X, faces, curvature, axis, units, params)
     last = table.iloc[-1]
-    ax_s.set_title(rf"step {int(last['step'])}, $\Delta V/V$ = {float(last['dV_over_V']):.3f}",
-                   fontsize=9)
+    size = f", $R$ = {params.R:.3g} m" if units == "si" else ""
+    ax_s.set_title(rf"step {int(last['step'])}, $\Delta V/V$ = {float(last['dV_over_V']):.3f}"
+                   + size, fontsize=9)
     fig.suptitle(title or rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
                  + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"), fontsize=11)
+    for ax in (ax_e, ax_p):  # last: every curve and marker of the panel is drawn by now
+        place_legend(ax, frameon=False, fontsize=8)
     if path is not None:
         fig.savefig(path, dpi=150)
         plt.close(fig)
     return fig
 
 
-def plot_deflation(run, path=None, step: int = -1):
+def plot_deflation(run, path=None, step: int = -1, *, units: str = "reduced"):
     """The run figure (:func:`plot_run`) of a stored :class:`~shellbuckle.run.Run`, with the
-    conformation of ``step`` (default: the last) coloured by Jülicher's mean curvature."""
+    conformation of ``step`` (default: the last) coloured by Jülicher's mean curvature, seen
+    from out of its dent (:func:`view_axis`), in ``units`` (``"reduced"`` or ``"si"``; checked
+    before any work)."""
     from ..energies.bending import Bending
     from ..mesh.topology import Topology
 
+    check_units(units, run.params)
     X = run.positions(step)
     faces = run.faces
     H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
     table = run.table
     table = table[table["step"] <= run.step(step)]
-    return plot_run(table, run.params, X, faces, H, path=path, axis=view_axis(X, faces))
+    return plot_run(table, run.params, X, faces, H, path=path, axis=view_axis(X, faces),
+                    units=units)
