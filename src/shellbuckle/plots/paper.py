@@ -44,6 +44,7 @@ from matplotlib.figure import Figure
 from .. import theory
 from ..analysis.collect import load_reference
 from .render import CURVATURE_LIMIT, render
+from .run import check_units, energy_unit
 from .theory import _STYLE
 
 __all__ = ["Conformation", "FORMATS", "conformation", "fig3_potato_capsule", "fig7_gallery",
@@ -59,6 +60,9 @@ GALLERY_DV_OVER_V = 0.854
 #: Panels per row of Fig. 7 at page width (1.4 in each).
 GALLERY_COLUMNS = 5
 FORMATS = ("png", "pdf", "svg")
+#: Volumes closer than this are one volume for :func:`nearest_step` (the dV/V held along a
+#: path in gamma or c0 differs from step to step by rounding, ~1e-15).
+VOLUME_TIE = 1e-9
 
 
 # ---------------------------------------------------------------------- inputs
@@ -87,12 +91,15 @@ def _short(run) -> str:
         parts.append(f"{run.store.n_vertices} vertices")
     if run.params.energy_convention != "helfrich":
         parts.append(run.params.energy_convention)
+    if not protocol.c0_cycle:
+        parts.append("no $c_0$ cycle")
     return ", ".join(parts)
 
 
 def nearest_step(run, dV_over_V: float) -> int:
     """The stored step of ``run`` whose ``dV_over_V`` is nearest to ``dV_over_V`` (the last on
-    a tie, so along a path in gamma or c0 at fixed volume it is the end of the path).
+    a tie within :data:`VOLUME_TIE`, so along a path in gamma or c0 at fixed volume it is the
+    end of the path).
     ValueError if ``dV_over_V`` is not a number in [0, 1) or the run has no step."""
     value = float(dV_over_V)
     if not (math.isfinite(value) and 0.0 <= value < 1.0):
@@ -101,7 +108,8 @@ def nearest_step(run, dV_over_V: float) -> int:
     if table.empty:
         raise ValueError(f"run {run} has no finished step")
     distance = np.abs(table["dV_over_V"].to_numpy(dtype=float) - value)
-    i = int(np.flatnonzero(distance == distance.min())[-1])
+    # a tie up to rounding: the volume held along a path is measured anew at each step
+    i = int(np.flatnonzero(distance <= distance.min() + VOLUME_TIE)[-1])
     return int(table["step"].iloc[i])
 
 
@@ -112,8 +120,10 @@ class Conformation:
     ``run`` (folder name), ``step``, ``dV_over_V``, ``E_over_kappa`` (table values), ``gamma``
     (in force at that step), ``X (V, 3)`` stored positions, ``faces``, the class ``shape``,
     ``n_dimples``, ``corners``, ``W`` (the table's analysis columns when present, else
-    computed), ``axis`` (dent axis or ``None``) and ``H (V,)`` (the analysis' smoothed mean
-    curvature).
+    computed), ``axis`` (dent axis or ``None``), ``H (V,)`` (the analysis' smoothed mean
+    curvature, in the run's units like ``X``) and ``R``, the run's length unit (its radius in
+    the units of ``X``: 1 for a shell given by gamma, metres for a material), by which the
+    panels show ``X/R`` and ``H R``.
     """
 
     run: str
@@ -129,6 +139,7 @@ class Conformation:
     W: int
     axis: np.ndarray | None
     H: np.ndarray
+    R: float = 1.0
 
     @property
     def label(self) -> str:
@@ -180,7 +191,7 @@ def conformation(run, step: int, analyzer=None) -> Conformation:
         corners=int(stored["corners"] if stored["corners"] is not None else c.corners),
         W=int(stored["W"] if stored["W"] is not None else c.W),
         axis=None if c.dent_axis is None else np.asarray(c.dent_axis),
-        H=c.descriptors.geometry.H_smooth)
+        H=c.descriptors.geometry.H_smooth, R=float(run.params.R))
 
 
 def _gamma_at(run, step: int) -> float:
@@ -189,62 +200,118 @@ def _gamma_at(run, step: int) -> float:
     return float((params_at(step) if params_at else run.params).gamma)
 
 
-def _panel(fig, rect, conf: Conformation, radius: float, tilt: float):
+def _length(conf: Conformation, units: str) -> float:
+    """The length unit a panel shows ``conf`` in, in the run's units: its R (reduced), or 1
+    (``"si"``: a material run's positions are stored in m)."""
+    return conf.R if units == "reduced" else 1.0
+
+
+def _panel(fig, rect, conf: Conformation, radius: float, tilt: float, units: str = "reduced"):
+    """A 3D panel of ``conf`` in R and 1/R (or m and 1/m), colour limits ``CURVATURE_LIMIT/R``
+    (the same colours for the same shape in either unit)."""
+    L = _length(conf, units)
     ax = fig.add_axes(rect, projection="3d")
-    ax.rendering = render(ax, conf.X, conf.faces, axis=conf.axis, values=conf.H,
-                          vlim=CURVATURE_LIMIT, radius=radius, tilt=tilt)
+    ax.rendering = render(ax, conf.X / L, conf.faces, axis=conf.axis, values=conf.H * L,
+                          vlim=CURVATURE_LIMIT * L / conf.R, radius=radius, tilt=tilt)
     ax.conformation = conf
     return ax
 
 
-def _radius(confs) -> float:
-    return max(float(np.linalg.norm(c.X - c.X.mean(axis=0), axis=1).max()) for c in confs)
+def _radius(confs, units: str = "reduced") -> float:
+    """The half-width shared by the panels: the largest shape's, in the unit shown."""
+    return max(float(np.linalg.norm(c.X - c.X.mean(axis=0), axis=1).max()) / _length(c, units)
+               for c in confs)
 
 
-def _colorbar(fig, ax_rendering, rect, orientation="horizontal"):
+def _colorbar(fig, ax_rendering, rect, orientation="horizontal", units: str = "reduced"):
     cax = fig.add_axes(rect)
     bar = fig.colorbar(ax_rendering.rendering.mappable, cax=cax, orientation=orientation)
-    bar.set_label(r"mean curvature $H$ ($1/R$)", fontsize=7)
+    unit = "1/R" if units == "reduced" else "1/m"
+    bar.set_label(rf"mean curvature $H$ (${unit}$)", fontsize=7)
     cax.tick_params(labelsize=6)
     return bar
 
 
+def _text_width(text: str, fontsize: float) -> float:
+    """Width in inches of one line of ``text`` at ``fontsize`` points, as matplotlib draws it
+    (mathtext between dollars)."""
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.font_manager import FontProperties
+
+    math_text = text.count("$") >= 2 and text.count("$") % 2 == 0
+    width, _, _ = RendererAgg(1, 1, 72).get_text_width_height_descent(
+        text, FontProperties(size=fontsize), ismath=math_text)
+    return width / 72.0
+
+
+def _wrap(text: str, width: float, fontsize: float, min_fontsize: float = 6.0):
+    """``(text, fontsize)`` of a caption that fits ``width`` inches: each line too wide is
+    broken after its commas outside mathtext (greedily), and if a piece is still too wide the
+    font shrinks by half points down to ``min_fontsize``."""
+    lines = []
+    for line in text.split("\n"):
+        pieces, start = [], 0
+        for i, char in enumerate(line):
+            if line.startswith(", ", i) and line[:i].count("$") % 2 == 0:
+                pieces.append(line[start:i + 1])
+                start = i + 2
+        pieces.append(line[start:])
+        current = pieces[0]
+        for piece in pieces[1:]:
+            if _text_width(f"{current} {piece}", fontsize) <= width:
+                current = f"{current} {piece}"
+            else:
+                lines.append(current)
+                current = piece
+        lines.append(current)
+    while fontsize > min_fontsize and max(_text_width(ln, fontsize) for ln in lines) > width:
+        fontsize -= 0.5
+    return "\n".join(lines), fontsize
+
+
 def _row_figure(confs, captions, width: float, title: str | None, footer: list[str],
-                tilt: float, titles=None, ncols: int | None = None) -> Figure:
+                tilt: float, titles=None, ncols: int | None = None,
+                units: str = "reduced") -> Figure:
     """Renderings in rows of ``ncols`` (default: one row) square panels, a caption under each,
-    a colour bar and footer lines below, a title above. Layout in inches."""
+    a colour bar and footer lines below, a title above. Layout in inches; every text is
+    wrapped to its width (:func:`_wrap`: a caption to its panel, so neighbours never meet)."""
     n = len(confs)
     ncols = n if ncols is None else max(1, min(int(ncols), n))
     nrows = math.ceil(n / ncols)
     side = width / ncols
-    caption_h = 0.13 * max(c.count("\n") + 1 for c in captions)
-    title_h = 0.25 if title else 0.0
+    fitted = [_wrap(c, side - 0.08, 7 if side >= 1.6 else 6.5) for c in captions]
+    caption_h = 0.13 * max(c.count("\n") + 1 for c, _ in fitted)
+    if title:
+        title, title_size = _wrap(title, width - 0.1, 8.5)
+    title_h = 0.25 + 0.15 * title.count("\n") if title else 0.0
     panel_title_h = 0.16 if titles else 0.0
     row_h = panel_title_h + side + caption_h
     bar_h = 0.55
+    footer = [piece for line in footer for piece in _wrap(line, width - 0.08, 7)[0].split("\n")]
     footer_h = 0.14 * len(footer) + (0.05 if footer else 0.0)
     height = title_h + nrows * row_h + bar_h + footer_h
     fig = Figure(figsize=(width, height))
-    radius = _radius(confs)
+    radius = _radius(confs, units)
     axes = []
-    for i, (conf, caption) in enumerate(zip(confs, captions)):
+    for i, (conf, (caption, size)) in enumerate(zip(confs, fitted)):
         row, col = divmod(i, ncols)
         y0 = footer_h + bar_h + (nrows - 1 - row) * row_h + caption_h
         ax = _panel(fig, (col * side / width, y0 / height, side / width, side / height), conf,
-                    radius, tilt)
+                    radius, tilt, units)
         axes.append(ax)
         fig.text((col + 0.5) * side / width, (y0 - 0.03) / height, caption, ha="center",
-                 va="top", fontsize=7 if side >= 1.6 else 6.5, linespacing=1.25)
+                 va="top", fontsize=size, linespacing=1.25)
         if titles:
             fig.text((col + 0.5) * side / width, (y0 + side + 0.02) / height, titles[i],
                      ha="center", va="bottom", fontsize=8)
-    _colorbar(fig, axes[0], (0.3, (footer_h + 0.38) / height, 0.4, 0.05 / height))
+    _colorbar(fig, axes[0], (0.3, (footer_h + 0.38) / height, 0.4, 0.05 / height),
+              units=units)
     for j, line in enumerate(footer):
         fig.text(0.02, (footer_h - 0.05 - 0.14 * j) / height, line, ha="left", va="top",
                  fontsize=7)
     if title:
         fig.text(0.5, 1.0 - 0.5 * title_h / height, title, ha="center", va="center",
-                 fontsize=8.5)
+                 fontsize=title_size)
     fig.panels = axes
     return fig
 
@@ -327,7 +394,7 @@ def fig7_gallery(runs, *, at: float = GALLERY_DV_OVER_V, reference=None,
 
 # ---------------------------------------------------------------------- Fig. 9
 
-def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
+def fig9_energy(runs, *, theory_curves: bool = True, ax=None, units: str = "reduced") -> Figure:
     """Fig. 9: E/kappa (table column ``E_over_kappa``) against ``dV_over_V`` for each run, with
     U_sphere (eq. Usphere, small strain, as the paper's figure) and U_axisym (eq. Ucapsule) for
     each gamma, the primary buckling of each run (:func:`shellbuckle.analysis.events`; a filled
@@ -335,7 +402,9 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     U_sphere = U_axisym (vertical line). With one gamma the curves take the colours of
     :func:`shellbuckle.plots.theory.plot_theory` and the exact Green-Lagrange energy of the
     shrunk sphere is added; with several, each gamma has one colour (runs and theory) and the
-    legend names the line styles once."""
+    legend names the line styles once. ``units="si"`` (runs made from a material): energies in
+    J, each run's E/kappa times its kappa, the theory of each gamma times the kappa of its
+    first run."""
     from matplotlib.lines import Line2D
 
     from ..analysis import events
@@ -343,6 +412,7 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     runs = [_open(r) for r in ([runs] if not isinstance(runs, (list, tuple)) else runs)]
     if not runs:
         raise ValueError("fig9_energy needs at least one run")
+    scales = [energy_unit(r.params, units)[0] for r in runs]  # checks the units first
     if ax is None:
         fig = Figure(figsize=(1.65 * COLUMN, 2.8))  # the legend to the right of the axes
         ax = fig.add_axes((0.095, 0.14, 0.55, 0.78))
@@ -351,23 +421,24 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     single = len(gammas) == 1
     xmax = max(float(r.table["dV_over_V"].max()) for r in runs)
     xmax = min(max(xmax, 0.05) * 1.05, 0.999)
-    ymax = max(float(r.table["E_over_kappa"].max()) for r in runs) * 1.15
+    ymax = max(float(r.table["E_over_kappa"].max()) * k for r, k in zip(runs, scales)) * 1.15
     if theory_curves:
         for g in gammas:
             params = next(r.params for r in runs if r.params.gamma == g)
-            _theory(ax, params, xmax, None if single else f"C{gammas.index(g)}", single)
-    for i, run in enumerate(runs):
+            _theory(ax, params, xmax, None if single else f"C{gammas.index(g)}", single,
+                    energy_unit(params, units)[0])
+    for i, (run, scale) in enumerate(zip(runs, scales)):
         table = run.table
         color = f"C{gammas.index(run.params.gamma)}" if not single else f"C{i}"
         label = (f"$\\gamma$ = {run.params.gamma:g}, {_short(run)}" if not single else
                  f"simulation, {_short(run)}")
-        ax.plot(table["dV_over_V"].to_numpy(float), table["E_over_kappa"].to_numpy(float),
-                "o-", ms=2.5, lw=0.9, color=color, label=label, gid=f"simulation:{_name(run)}",
-                zorder=4)
+        ax.plot(table["dV_over_V"].to_numpy(float),
+                table["E_over_kappa"].to_numpy(float) * scale, "o-", ms=2.5, lw=0.9,
+                color=color, label=label, gid=f"simulation:{_name(run)}", zorder=4)
         for e in events(run, table):
             if e.name != "primary_buckling":
                 continue
-            y = float(table.loc[table["step"] == e.step, "E_over_kappa"].iloc[0])
+            y = float(table.loc[table["step"] == e.step, "E_over_kappa"].iloc[0]) * scale
             ax.plot([e.dV_over_V], [y], marker="v", ms=6, mec="black", zorder=6,
                     mfc=color if e.confirmed else "white", ls="none",
                     gid=f"primary:{_name(run)}",
@@ -385,12 +456,16 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     ax.set_xlim(0.0, xmax)
     ax.set_ylim(0.0, ymax)
     ax.set_xlabel(r"relative volume loss $\Delta V/V$")
-    ax.set_ylabel(r"elastic energy $E/\kappa$")
+    ax.set_ylabel(energy_unit(runs[0].params, units)[1])
     ax.grid(True, alpha=0.25, lw=0.5)
     ax.tick_params(labelsize=7)
-    # beside the axes, never over the data (the curves fill the upper left and right)
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6,
-              frameon=False, handlelength=2.2, borderaxespad=0.0)
+    # beside the axes, never over the data (the curves fill the upper left and right), each
+    # label broken after its commas to the width left of the figure
+    box = ax.get_position()
+    room = fig.get_figwidth() * (1.0 - box.x1 - 0.02 * box.width) - 3.0 * 6 / 72 - 0.05
+    labels = [_wrap(h.get_label(), max(room, 1.0), 6, min_fontsize=6)[0] for h in handles]
+    ax.legend(handles=handles, labels=labels, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+              fontsize=6, frameon=False, handlelength=2.2, borderaxespad=0.0)
     if single:
         note = runs[0].params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")
         ax.set_title(f"$\\gamma$ = {gammas[0]:g}, $\\nu$ = {runs[0].params.nu:.3g}{note}",
@@ -398,10 +473,11 @@ def fig9_energy(runs, *, theory_curves: bool = True, ax=None) -> Figure:
     return fig
 
 
-def _theory(ax, params, xmax: float, color, labelled: bool) -> None:
-    """U_sphere (and its exact form when ``labelled``), U_axisym and their crossing."""
+def _theory(ax, params, xmax: float, color, labelled: bool, scale: float = 1.0) -> None:
+    """U_sphere (and its exact form when ``labelled``), U_axisym and their crossing, as E/kappa
+    times ``scale``."""
     x = np.linspace(0.0, xmax, 400)
-    kappa = params.kappa
+    unit = params.kappa / scale  # the energy drawn as 1
 
     def style(key):
         s = dict(_STYLE[key])
@@ -412,17 +488,17 @@ def _theory(ax, params, xmax: float, color, labelled: bool) -> None:
     def label(text):
         return text if labelled else None
 
-    ax.plot(x, theory.U_sphere(x, params) / kappa, **style("sphere"),
+    ax.plot(x, theory.U_sphere(x, params) / unit, **style("sphere"),
             label=label(r"$U_\mathrm{sphere}$"), gid=f"U_sphere:{params.gamma:g}")
     if labelled:
-        ax.plot(x, theory.U_sphere_exact(x, params) / kappa, **style("sphere_exact"),
+        ax.plot(x, theory.U_sphere_exact(x, params) / unit, **style("sphere_exact"),
                 label=r"$U_\mathrm{sphere}$, exact Green-Lagrange",
                 gid=f"U_sphere_exact:{params.gamma:g}")
-    ax.plot(x[1:], theory.U_axisym_of_dV(x[1:], params) / kappa, **style("axisym"),
+    ax.plot(x[1:], theory.U_axisym_of_dV(x[1:], params) / unit, **style("axisym"),
             label=label(r"$U_\mathrm{axisym}$"), gid=f"U_axisym:{params.gamma:g}")
     xc = theory.summary(params)["crossing_dV_over_V"]
     if xc is not None and xc < xmax:
-        ax.axvline(xc, **style("crossing"), alpha=0.6, zorder=1, gid=f"crossing:{params.gamma:g}",
+        ax.axvline(xc, **style("crossing"), zorder=1, gid=f"crossing:{params.gamma:g}",
                    label=label(r"$U_\mathrm{sphere}=U_\mathrm{axisym}$ at "
                                rf"$\Delta V/V$ = {xc:.3g}"))
 
@@ -498,14 +574,17 @@ def _soleil_ratio(paper: dict | None) -> float | None:
 # ---------------------------------------------------------------------- per-run gallery
 
 def run_gallery(run, *, every: int | None = None, steps=None, max_panels: int = 8,
-                ncols: int = 4, tilt: float = 0.0) -> Figure:
+                ncols: int = 4, tilt: float = 0.0, units: str = "reduced") -> Figure:
     """The conformations of one run (sphere -> capsule -> polygon -> wrinkled), one panel every
     ``every`` stored steps from the first, plus the last step (default ``every``: so that
     there are at most ``max_panels`` panels), or exactly ``steps``; all from the same view
-    (along the dent axis) and scale, with dV/V, the class and W under each."""
+    (along the dent axis) and scale, with dV/V, the class and W under each. ``units``:
+    lengths and curvatures in R and 1/R, or (``"si"``, a run made from a material) m and
+    1/m."""
     from ..analysis import ShapeAnalyzer
 
     run = _open(run)
+    check_units(units, run.params)
     stored = list(run.steps)
     if not stored:
         raise ValueError(f"run {_name(run)} has no finished step")
@@ -523,21 +602,23 @@ def run_gallery(run, *, every: int | None = None, steps=None, max_panels: int = 
     ncols = min(ncols, n)
     nrows = math.ceil(n / ncols)
     side = PAGE / ncols
-    caption_h, title_h, bar_h = 0.3, 0.3, 0.4
+    captions = [_wrap(f"step {c.step}, $\\Delta V/V$ = {c.dV_over_V:.3f}\n{c.label}",
+                      side - 0.08, 7) for c in confs]
+    caption_h = 0.06 + 0.12 * max(text.count("\n") + 1 for text, _ in captions)
+    title_h, bar_h = 0.3, 0.55  # the colour bar, its ticks and its label below the panels
     height = title_h + nrows * (side + caption_h) + bar_h
     fig = Figure(figsize=(PAGE, height))
-    radius = _radius(confs)
+    radius = _radius(confs, units)
     axes = []
-    for i, c in enumerate(confs):
+    for i, (c, (caption, size)) in enumerate(zip(confs, captions)):
         row, col = divmod(i, ncols)
         y0 = height - title_h - (row + 1) * side - row * caption_h
         ax = _panel(fig, (col * side / PAGE, y0 / height, side / PAGE, side / height), c,
-                    radius, tilt)
+                    radius, tilt, units)
         axes.append(ax)
-        fig.text((col + 0.5) * side / PAGE, (y0 - 0.02) / height,
-                 f"step {c.step}, $\\Delta V/V$ = {c.dV_over_V:.3f}\n{c.label}", ha="center",
-                 va="top", fontsize=7, linespacing=1.25)
-    _colorbar(fig, axes[0], (0.35, 0.22 / height, 0.3, 0.05 / height))
+        fig.text((col + 0.5) * side / PAGE, (y0 - 0.02) / height, caption, ha="center",
+                 va="top", fontsize=size, linespacing=1.25)
+    _colorbar(fig, axes[0], (0.35, 0.38 / height, 0.3, 0.05 / height), units=units)
     p = run.params
     fig.text(0.5, 1.0 - 0.5 * title_h / height,
              f"{_name(run)}: $\\gamma$ = {p.gamma:g}, $\\nu$ = {p.nu:.3g}, "
