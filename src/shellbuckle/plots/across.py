@@ -31,6 +31,7 @@ from .. import theory
 from ..analysis import collect as collect_mod
 from ..analysis.fits import W_WINDOW, critical_gamma
 from ..params import ShellParameters
+from .render import place_legend
 
 log = logging.getLogger(__name__)
 
@@ -65,10 +66,30 @@ def _nu(df) -> float:
     return float(nu[rounded == rounded.value_counts().idxmax()].iloc[0])
 
 
+#: The part of viridis the gammas are drawn in: without its light yellow-green end, whose
+#: contrast with white is below 2 (WCAG contrast ratio; viridis(0.72) has 2.3).
+VIRIDIS_END = 0.72
+
+
 def _gamma_colour(plt, t: float):
-    """Colour of a gamma mapped to ``t`` in [0, 1]: viridis without its pale yellow end,
-    which does not show on white."""
-    return plt.get_cmap("viridis")(0.82 * float(t))
+    """Colour of a gamma mapped to ``t`` in [0, 1]: viridis up to :data:`VIRIDIS_END`."""
+    return plt.get_cmap("viridis")(VIRIDIS_END * float(t))
+
+
+def fit_label(name: str, fit) -> str:
+    """A fit's legend: the law with its errors and its degrees of freedom
+    (:meth:`~shellbuckle.analysis.fits.PowerLawFit.describe`), or, without them, that it has
+    no error estimate."""
+    return f"fit {name}: {fit.describe()}"
+
+
+def gamma_c_label(fit) -> str:
+    """The legend of our gamma_c (the secondary law at dV/V = 1) with its error and the
+    degrees of freedom of the fit it comes from, or without an error when the fit has none."""
+    gc = critical_gamma(fit)
+    if not (fit.has_error and math.isfinite(gc.err)):
+        return rf"our $\gamma_c$ = {gc.value:.0f} (no error estimate: {fit.dof} dof)"
+    return rf"our $\gamma_c$ = {gc.value:.0f} ± {gc.err:.0f} ({fit.dof} dof)"
 
 
 def _no_data(ax, text):
@@ -103,7 +124,7 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
         for key, style, label in (("primary", "-", "primary"), ("secondary", "-", "secondary")):
             if key in fits:
                 ax.plot(grid, fits[key](grid), style, color="C0" if key == "primary" else "C3",
-                        lw=1.4, label=f"fit {label}: {fits[key]}", gid=f"fit_{key}")
+                        lw=1.4, label=fit_label(label, fits[key]), gid=f"fit_{key}")
         if ref is not None:
             p, s = ref["results"]["primary_buckling_fit"], ref["results"]["secondary_buckling_fit"]
             paper = np.geomspace(*ref["protocol"]["gamma_range"], 60)
@@ -117,10 +138,8 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
             ax.plot([s["gamma_c"]], [1.0], "*", ms=11, color="C3", mfc="none",
                     gid="paper_gamma_c")
         if "secondary" in fits:
-            gc = critical_gamma(fits["secondary"])
-            err = f" ± {gc.err:.0f}" if math.isfinite(gc.err) else ""
-            ax.plot([gc.value], [1.0], "*", ms=11, color="C3", gid="gamma_c",
-                    label=rf"our $\gamma_c$ = {gc.value:.0f}{err}")
+            ax.plot([critical_gamma(fits["secondary"]).value], [1.0], "*", ms=11, color="C3",
+                    gid="gamma_c", label=gamma_c_label(fits["secondary"]))
         crossing = []
         for g in grid:
             try:
@@ -135,7 +154,7 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
         ax.plot(grid, classical, "-.", color="0.6", lw=1.0,
                 label=r"classical: $6(1-\nu)/\sqrt{%s\gamma}$" % _GAMMA_FACTOR[convention],
                 gid="classical")
-        ax.axhline(1.0, color="0.8", lw=0.8)
+        ax.axhline(1.0, color="0.6", lw=0.8, gid="whole_volume")
         values = runs[[f"{n}_dV_over_V" for n in _MARKERS]].to_numpy(float)
         bottom = min(0.01, np.nanmin(values) / 1.5) if np.isfinite(values).any() else 0.01
         ax.set(xscale="log", yscale="log",
@@ -187,7 +206,7 @@ def plot_W_vs_gamma(df, *, reference=None, path=None):
                ylabel=rf"$\langle W \rangle$, $\Delta V/V \in [{window[0]}, {window[1]}]$")
         ax.set_ylim(bottom=0)
         ax.set_title("Number of wrinkles vs γ (paper Fig. 5)")
-        ax.legend(loc="upper left", frameon=False)
+        place_legend(ax, frameon=False)
     if path is not None:
         fig.savefig(path, dpi=DPI)
     return fig
@@ -230,7 +249,7 @@ def plot_W_vs_dV(df, tables=None, *, reference=None, path=None):
         ax.set(xlabel=r"$\Delta V/V$", ylabel="number of wrinkles $W$", xlim=(0, 1))
         ax.set_ylim(0, ax.get_ylim()[1] + 1.0)
         ax.set_title("Wrinkles along the deflation (paper Fig. 4)")
-        ax.legend(loc="lower right", frameon=False, fontsize=7, ncol=2 if drawn > 8 else 1)
+        place_legend(ax, frameon=False, fontsize=7, ncol=2 if drawn > 8 else 1)
     if path is not None:
         fig.savefig(path, dpi=DPI)
     return fig

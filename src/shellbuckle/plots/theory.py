@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 
 from .. import theory
 from ..params import ShellParameters
+from .render import place_legend
 
 __all__ = ["plot_theory"]
 
@@ -111,8 +112,11 @@ def plot_theory(params: ShellParameters, path=None, ax=None) -> Figure:
     threshold ``dV/V = 6 (1 - nu)/sqrt(gamma)`` (``p_c = 4 sqrt(kappa A)/R^2``).
 
     Without ``ax``: a two-panel figure, (a) linear dV/V on [0, 1] with logarithmic energy,
-    (b) log-log around the crossing with the paper's thin-shell asymptotic form. With ``ax``:
-    panel (a) only, drawn into ``ax``. ``path``: the figure is saved there in the format of
+    (b) log-log around the crossing with the paper's thin-shell asymptotic form, and one
+    legend for both below them (the curves and the vertical marks fill every corner of the
+    panels). With ``ax``: panel (a) only, drawn into ``ax``, its legend framed where it covers
+    the fewest points of the curves (:func:`~shellbuckle.plots.render.place_legend`; the
+    caller's figure may leave no room beside the axes). ``path``: the figure is saved there in the format of
     its suffix (``.png``; a ``.pdf`` path also gets a PNG of the same name). Returns the
     Figure. ``ValueError`` when d/R is undefined (nu >= 1/2).
     """
@@ -123,27 +127,29 @@ def plot_theory(params: ShellParameters, path=None, ax=None) -> Figure:
                                theory.U_sphere(info["crossing_dV_over_V"], params)
                                / params.kappa)
     if ax is None:
-        fig = Figure(figsize=(11.0, 4.6))  # fixed margins: constrained layout costs seconds
+        fig = Figure(figsize=(11.0, 5.4))  # fixed margins: constrained layout costs seconds
         ax_overview, ax_zoom = fig.subplots(1, 2)
-        fig.subplots_adjust(left=0.065, right=0.98, bottom=0.115, top=0.865, wspace=0.2)
+        fig.subplots_adjust(left=0.065, right=0.98, bottom=0.27, top=0.885, wspace=0.2)
         _overview(ax_overview, params, info)
         _zoom(ax_zoom, params, info)
         ax_overview.set_title("(a) whole deflation", loc="left", fontsize="medium")
         ax_zoom.set_title("(b) log-log, with the thin-shell limit", loc="left",
                           fontsize="medium")
-        ax_zoom.legend(loc="upper left", fontsize="small", framealpha=0.9)
+        fig.legend(*ax_zoom.get_legend_handles_labels(), loc="lower center", ncol=3,
+                   bbox_to_anchor=(0.5, 0.005), fontsize="small", frameon=False)
         fig.suptitle("Shrunk sphere vs. inverted cap (Quilliet et al. 2008, §3): "
                      + _title(params))
     else:
         fig = ax.figure
         _overview(ax, params, info)
-        ax.legend(loc="lower right", fontsize="small", framealpha=0.9)
         ax.set_title(_title(params))
     if info["crossing_dV_over_V"] is None:
         log.info("no U_sphere = U_axisym crossing at gamma = %g", params.gamma)
         (ax or fig.axes[0]).annotate(
             r"no crossing: $U_\mathrm{axisym}>U_\mathrm{sphere}$ for all $\Delta V/V$",
             xy=(0.02, 0.97), xycoords="axes fraction", ha="left", va="top", fontsize="small")
+    if ax is not None:  # last: where it covers the fewest curves (a frame fades what is under)
+        place_legend(ax, outside=False, fontsize="small", framealpha=0.9)
     if path is not None:
         path = Path(path)
         fig.savefig(path, dpi=200)
