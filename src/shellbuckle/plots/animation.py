@@ -22,7 +22,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FORMATS", "animate_run", "frame_steps", "mp4_available"]
+__all__ = ["FORMATS", "animate_run", "animation_frame", "frame_steps", "mp4_available"]
 
 #: Suffixes of the animations written.
 FORMATS = (".gif", ".mp4")
@@ -48,20 +48,78 @@ def frame_steps(steps, every: int | None = None) -> list[int]:
     return shown
 
 
+def _shown(run, every, steps) -> list[int]:
+    if not run.steps:
+        raise ValueError(f"run {str(run.path)!r} has no finished step")
+    return frame_steps(run.steps, every) if steps is None else [run.step(k) for k in steps]
+
+
+def _camera(run, shown, analyzer):
+    """The animation's camera and scale: the dent axis of its last frame (None: the default
+    view) and the largest distance of a vertex from its shape's centroid over the frames."""
+    from .paper import conformation
+
+    radius = max(float(np.linalg.norm(X - X.mean(axis=0), axis=1).max())
+                 for X in (run.positions(k) for k in shown))
+    return conformation(run, shown[-1], analyzer).axis, radius
+
+
+def _title(run) -> str:
+    params = run.params
+    return (f"{Path(run.path).name}: $\\gamma$ = {params.gamma:g}, $\\nu$ = {params.nu:.3g}"
+            + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"))
+
+
+def _draw_frame(fig, conf, axis, radius: float, title: str, size: float) -> None:
+    """One frame on ``fig`` (cleared): the rendering of ``conf`` from ``axis`` at ``radius``,
+    the title above it and the step, dV/V and class below."""
+    from .render import CURVATURE_LIMIT, render
+
+    fig.clear()
+    ax = fig.add_axes((0.0, 0.5 / (size + 0.5) * 0.6, 1.0, size / (size + 0.5)),
+                      projection="3d")
+    render(ax, conf.X, conf.faces, axis=axis, values=conf.H, vlim=CURVATURE_LIMIT / conf.R,
+           radius=radius)
+    fig.text(0.5, 0.985, title, ha="center", va="top", fontsize=9)
+    fig.text(0.5, 0.02, f"step {conf.step}, $\\Delta V/V$ = {conf.dV_over_V:.3f}, {conf.label}",
+             ha="center", va="bottom", fontsize=9)
+
+
+def animation_frame(run, step: int = -1, *, every: int | None = None, steps=None,
+                    size: float = 4.0):
+    """The frame of ``step`` (default: the last) of the animation :func:`animate_run` writes
+    with ``every`` or ``steps``, as a :class:`~matplotlib.figure.Figure` (Agg canvas,
+    ``size`` inches wide): the same camera, scale and texts."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from ..analysis import ShapeAnalyzer
+    from .paper import _open, conformation
+
+    run = _open(run)
+    shown = _shown(run, every, steps)
+    analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.positions(shown[0])), contact=False)
+    axis, radius = _camera(run, shown, analyzer)
+    fig = Figure(figsize=(size, size + 0.5))
+    FigureCanvasAgg(fig)
+    _draw_frame(fig, conformation(run, run.step(step), analyzer), axis, radius, _title(run),
+                size)
+    return fig
+
+
 def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None,
                 dpi: int = 100, size: float = 4.0) -> Path:
     """Write the animation of ``run`` (a Run or a run folder) to ``path`` (``.gif`` or
     ``.mp4``); return the path. One frame per stored step, or per :func:`frame_steps` with
     ``every``, or exactly ``steps``; ``fps`` frames per second; frames ``size`` inches
-    square at ``dpi``. ValueError for another suffix, an MP4 without ffmpeg or a run without
-    steps."""
+    square at ``dpi`` (:func:`animation_frame` draws one). ValueError for another suffix, an
+    MP4 without ffmpeg or a run without steps."""
     from matplotlib.animation import FFMpegWriter, PillowWriter
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     from ..analysis import ShapeAnalyzer
     from .paper import _open, conformation
-    from .render import CURVATURE_LIMIT, render
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -72,29 +130,16 @@ def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None
         raise ValueError("MP4 needs the ffmpeg program, which is not on PATH; write a .gif "
                          "instead (no extra program needed)")
     run = _open(run)
-    if not run.steps:
-        raise ValueError(f"run {str(run.path)!r} has no finished step")
-    shown = frame_steps(run.steps, every) if steps is None else [run.step(k) for k in steps]
-    faces = run.faces
-    analyzer = ShapeAnalyzer(faces, n_vertices=len(run.positions(shown[0])), contact=False)
-    confs = [conformation(run, k, analyzer) for k in shown]
-    radius = max(float(np.linalg.norm(c.X - c.X.mean(axis=0), axis=1).max()) for c in confs)
-    axis = confs[-1].axis
-    params = run.params
+    shown = _shown(run, every, steps)
+    analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.positions(shown[0])), contact=False)
+    axis, radius = _camera(run, shown, analyzer)
     fig = Figure(figsize=(size, size + 0.5))
     FigureCanvasAgg(fig)
     writer = PillowWriter(fps=fps) if suffix == ".gif" else FFMpegWriter(fps=fps)
-    title = (f"{Path(run.path).name}: $\\gamma$ = {params.gamma:g}, $\\nu$ = {params.nu:.3g}"
-             + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$"))
+    title = _title(run)
     with writer.saving(fig, str(path), dpi):
-        for c in confs:
-            fig.clear()
-            ax = fig.add_axes((0.0, 0.5 / (size + 0.5) * 0.6, 1.0, size / (size + 0.5)),
-                              projection="3d")
-            render(ax, c.X, faces, axis=axis, values=c.H, vlim=CURVATURE_LIMIT, radius=radius)
-            fig.text(0.5, 0.985, title, ha="center", va="top", fontsize=9)
-            fig.text(0.5, 0.02, f"step {c.step}, $\\Delta V/V$ = {c.dV_over_V:.3f}, {c.label}",
-                     ha="center", va="bottom", fontsize=9)
+        for k in shown:
+            _draw_frame(fig, conformation(run, k, analyzer), axis, radius, title, size)
             writer.grab_frame()
-    log.info("%d frames of %s written to %s", len(confs), run.path, path)
+    log.info("%d frames of %s written to %s", len(shown), run.path, path)
     return path
