@@ -118,8 +118,8 @@ def _empty_W():
 
 #: name -> (builder of the figure from the runs, size in inches; a None height: any).
 FIGURES = {
-    "run": (lambda r: plot_deflation(r["a"]), (13.5, 4.2)),
-    "run_si": (lambda r: plot_deflation(r["material"], units="si"), (13.5, 4.2)),
+    "run": (lambda r: plot_deflation(r["a"]), (13.5, 5.0)),
+    "run_si": (lambda r: plot_deflation(r["material"], units="si"), (13.5, 5.0)),
     "pv": (lambda r: plot_pv(family(r["a"])), (5.0, 3.8)),
     "pv_si": (lambda r: plot_pv([r["material"]], units="si"), (5.0, 3.8)),
     "fig3": (lambda r: paper.fig3_potato_capsule(r["plain"], r["a"], at=0.18),

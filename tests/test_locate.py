@@ -183,3 +183,26 @@ def test_jump_compares_the_energy_difference_with_the_pressure_work():
     assert _jump(old, {"pressure": 25.0, "E_total": 70.0 + 40 * dV}, dV)
     # the same pressure, but the energy off the branch by half the work
     assert _jump(old, {"pressure": 50.0, "E_total": 70.0 + 75.0 * dV}, dV)
+
+
+def test_run_figure_marks_the_located_events_and_splits_the_energy(runs):
+    from shellbuckle.plots.run import plot_deflation
+
+    _, run = runs
+    p = located(run)["primary_buckling"]
+    fig = plot_deflation(run)
+    ax_e, ax_p = fig.axes[0], fig.axes[1]
+    lines = {ln.get_gid(): ln for ln in ax_e.get_lines() + ax_p.get_lines() if ln.get_gid()}
+    table = run.table
+    bend, stretch = lines["E_bend"].get_ydata(), lines["E_stretch"].get_ydata()
+    assert bend + stretch == pytest.approx(table["E_over_kappa"].to_numpy(), rel=1e-12)
+    marks = [ln for ln in ax_p.get_lines() if ln.get_gid() == "located_primary_buckling"]
+    assert len(marks) == 1
+    x, y = marks[0].get_data()
+    p_c = theory.classical_threshold(run.params).pressure
+    assert list(x) == [p["dV_over_V"]] * 2
+    assert y == pytest.approx([p["old"]["pressure"] / p_c, p["new"]["pressure"] / p_c])
+    # the strip: one band per step after the first, in the colour of its class
+    strip = next(ax for ax in fig.axes if ax.get_ylabel() == "shape")
+    bands = [patch for patch in strip.patches if (patch.get_gid() or "").startswith("shape_")]
+    assert len(bands) == len(table) - 1

@@ -101,8 +101,13 @@ def _energy_panel(ax, table, params, grid, xmax, units):
     ax.plot(grid[1:], theory.U_axisym_of_dV(grid[1:], params) / kappa * scale, ":",
             color="C3", label=r"$U_{axisym}$ (inverted cap)", gid="U_axisym")
     E = np.asarray(table["E_over_kappa"], float) * scale
-    ax.plot(np.asarray(table["dV_over_V"], float), E, "o-", ms=3, color="C0",
-            label="simulation", gid="simulation")
+    x = np.asarray(table["dV_over_V"], float)
+    ax.plot(x, E, "o-", ms=3, color="C0", label="simulation", gid="simulation")
+    for column, style, color, text in (("E_bend", "-", "C2", "bending"),
+                                       ("E_stretch", "-", "C1", "stretching")):
+        if column in table:
+            part = np.asarray(table[column], float) / kappa * scale
+            ax.plot(x, part, style, lw=1.0, color=color, label=f"{text} part", gid=column)
     ax.set(xlabel=r"$\Delta V/V$", ylabel=label, xlim=(0, xmax),
            ylim=(0, 1.15 * max(float(np.nanmax(E)), scale)))
 
@@ -139,11 +144,76 @@ def _shape_panel(ax, X, faces, curvature, axis, units, params):
     return rendering
 
 
+#: Colours of the shape classes in the run figure's strip.
+SHAPE_COLORS = {"sphere": "0.82", "dimples": "C1", "capsule": "C0", "polygonal": "C2",
+                "wrinkled": "C3", "other": "0.45"}
+#: Markers and names of the located events marked in the run figure.
+EVENT_MARKS = {"primary_buckling": ("v", "primary buckling"),
+               "axisymmetry_loss": ("s", "loss of axisymmetry"),
+               "wrinkles": ("D", "wrinkles")}
+
+
+def _shape_strip(ax, table, xmax):
+    """The class of every step (a band from the previous step's dV/V to its own, coloured by
+    :data:`SHAPE_COLORS`) and W where it changes on wrinkled steps."""
+    x = np.asarray(table["dV_over_V"], float)
+    shapes = [str(v) for v in table["shape"]]
+    W = np.asarray(table["W"], float) if "W" in table else np.zeros(len(x))
+    seen = []
+    for i in range(1, len(x)):
+        color = SHAPE_COLORS.get(shapes[i], SHAPE_COLORS["other"])
+        label = shapes[i] if shapes[i] not in seen else None
+        if label:
+            seen.append(label)
+        ax.axvspan(x[i - 1], x[i], color=color, lw=0, label=label, gid=f"shape_{i}")
+    last_x = -1.0
+    for i in range(1, len(x)):
+        if shapes[i] == "wrinkled" and W[i] > 0 and (W[i] != W[i - 1] or shapes[i - 1] != "wrinkled") \
+                and x[i] - last_x > 0.06 * xmax:
+            ax.text(0.5 * (x[i - 1] + x[i]), 0.5, f"W={int(W[i])}", ha="center", va="center",
+                    fontsize=7, color="white", gid=f"W_{i}")
+            last_x = x[i]
+    ax.set(xlim=(0, xmax), ylim=(0, 1), yticks=[])
+    ax.set_ylabel("shape", rotation=0, ha="right", va="center", fontsize=8)
+    if seen:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.55), ncol=len(seen), fontsize=7,
+                  frameon=False, handlelength=1.2, columnspacing=1.0)
+
+
+def _mark_located(ax_e, ax_p, ax_strip, located: dict, params, units: str) -> None:
+    """Each located event (:mod:`shellbuckle.locate`) at its volume: the two ends of its
+    bracket (the last state of the old branch and the first of the new one) in the energy
+    and pressure panels, joined by a segment (the jump, if any), named in the pressure
+    panel's legend; a tick in the shape strip."""
+    e_scale, _ = energy_unit(params, units)
+    p_unit, _ = pressure_unit(params, units)
+    for name, (marker, text) in EVENT_MARKS.items():
+        point = located.get(name)
+        if not point or not point.get("complete", True):
+            continue
+        x = float(point["dV_over_V"])
+        old, new = point["old"], point["new"]
+        for ax, values in ((ax_e, [float(old["E_over_kappa"]) * e_scale,
+                                   float(new["E_over_kappa"]) * e_scale]),
+                           (ax_p, [float(old["pressure"]) / p_unit,
+                                   float(new["pressure"]) / p_unit])):
+            ax.plot([x, x], values, "-", color="0.2", lw=1.0, marker=marker, ms=6, mfc="white",
+                    mec="0.1", label=f"{text}, located at {x:.4f}" if ax is ax_p else None,
+                    gid=f"located_{name}", zorder=4)
+        if ax_strip is not None:
+            ax_strip.plot([x], [0.9], marker=marker, ms=5, color="0.1", mfc="white",
+                          gid=f"located_{name}_strip", zorder=4)
+
+
 def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, axis=None,
-             units: str = "reduced"):
-    """Three panels: the elastic energy vs dV/V with U_sphere and U_axisym; the pressure vs
-    dV/V with the shrunk-sphere pressure and the classical threshold p_c; the last
-    conformation in 3D, coloured by ``curvature`` (per-vertex mean curvature H, or None).
+             units: str = "reduced", located: dict | None = None):
+    """Three panels: the elastic energy vs dV/V with its bending and stretching parts,
+    U_sphere and U_axisym; the pressure vs dV/V with the shrunk-sphere pressure and the
+    classical threshold p_c; the last conformation in 3D, coloured by ``curvature``
+    (per-vertex mean curvature H, or None). Under the first two, when the table has the
+    analysis column ``shape``, a strip of the class of every step with W (the fourth axes);
+    ``located``: the located events (:func:`shellbuckle.locate.located`), marked by vertical
+    lines in the energy and pressure panels and in the strip.
 
     ``table`` is a run's per-step DataFrame (columns ``step``, ``dV_over_V``,
     ``E_over_kappa``, ``pressure``, as stored); ``params`` a
@@ -155,16 +225,23 @@ def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, 
     """
     check_units(units, params)
     plt = _pyplot()
-    fig = plt.figure(figsize=(13.5, 4.2), constrained_layout=True)
-    ax_e = fig.add_subplot(1, 3, 1)
-    ax_p = fig.add_subplot(1, 3, 2)
-    ax_s = fig.add_subplot(1, 3, 3, projection="3d")
+    strip = "shape" in table and table["shape"].notna().all() and len(table) > 1
+    fig = plt.figure(figsize=(13.5, 5.0 if strip else 4.2), constrained_layout=True)
+    grid_spec = fig.add_gridspec(2, 3, height_ratios=(1.0, 0.09 if strip else 1e-6))
+    ax_e = fig.add_subplot(grid_spec[0, 0])
+    ax_p = fig.add_subplot(grid_spec[0, 1])
+    ax_s = fig.add_subplot(grid_spec[:, 2], projection="3d")
     x = np.asarray(table["dV_over_V"], float)
     xmax = max(float(np.nanmax(x)) if len(x) else 0.0, 0.05) * 1.05
     grid = np.linspace(0.0, min(xmax, 0.999), 400)
     _energy_panel(ax_e, table, params, grid, xmax, units)
     _pressure_panel(ax_p, table, params, grid, xmax, units)
     _shape_panel(ax_s, X, faces, curvature, axis, units, params)
+    if strip:
+        ax_strip = fig.add_subplot(grid_spec[1, 0:2])
+        _shape_strip(ax_strip, table, xmax)
+    if located:
+        _mark_located(ax_e, ax_p, ax_strip if strip else None, located, params, units)
     last = table.iloc[-1]
     size = f", $R$ = {params.R:.3g} m" if units == "si" else ""
     ax_s.set_title(rf"step {int(last['step'])}, $\Delta V/V$ = {float(last['dV_over_V']):.3f}"
@@ -183,15 +260,21 @@ def plot_deflation(run, path=None, step: int = -1, *, units: str = "reduced"):
     """The run figure (:func:`plot_run`) of a stored :class:`~shellbuckle.run.Run`, with the
     conformation of ``step`` (default: the last) coloured by Jülicher's mean curvature, seen
     from out of its dent (:func:`view_axis`), in ``units`` (``"reduced"`` or ``"si"``; checked
-    before any work)."""
+    before any work), the strip of shapes (the stored analysis, or the steps classified
+    without writing) and the located events stored with the run."""
     from ..energies.bending import Bending
     from ..mesh.topology import Topology
+
+    from ..analysis.events import _table_with_shapes
+    from ..store.located import read_located
 
     check_units(units, run.params)
     X = run.positions(step)
     faces = run.faces
     H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
-    table = run.table
+    table = _table_with_shapes(run, run.table)
     table = table[table["step"] <= run.step(step)]
+    located = {name: p for name, p in read_located(run.path).items()
+               if p.get("step", 1 << 30) <= run.step(step)}
     return plot_run(table, run.params, X, faces, H, path=path, axis=view_axis(X, faces),
-                    units=units)
+                    units=units, located=located)

@@ -171,23 +171,25 @@ class Run:
             page.open()
         return page
 
-    def plot(self, path=None, step: int = -1):
-        """The run figure ``shellbuckle deflate`` draws at the end (E/kappa and p/p_c against
-        dV/V with the theory, the conformation of ``step`` in 3D):
-        :func:`shellbuckle.plots.run.plot_deflation`. Saved to ``path`` when given (PNG, or
-        PDF by the suffix); returns the matplotlib Figure."""
+    def plot(self, path=None, step: int = -1, *, units: str = "reduced"):
+        """The run figure ``shellbuckle deflate`` draws at the end (E/kappa with its bending
+        and stretching parts and p/p_c against dV/V with the theory, the class of every step,
+        the located events, the conformation of ``step`` in 3D):
+        :func:`shellbuckle.plots.run.plot_deflation`; ``units="si"`` for a run made from a
+        material (J, Pa, m). Saved to ``path`` when given (PNG, or PDF by the suffix); returns
+        the matplotlib Figure."""
         from ..plots.run import plot_deflation
 
-        return plot_deflation(self, path=path, step=step)
+        return plot_deflation(self, path=path, step=step, units=units)
 
-    def pv(self, path=None, branches: bool = True):
-        """p/p_c against dV/V of this run and, with ``branches``, of the runs started from it
-        beside it (re-inflations, other paths), arrows along each path
+    def pv(self, path=None, branches: bool = True, *, units: str = "reduced"):
+        """p/p_c (or Pa, ``units="si"``) against dV/V of this run and, with ``branches``, of
+        the runs started from it beside it (re-inflations, other paths), arrows along each path
         (:func:`shellbuckle.plots.pv.plot_pv`, :func:`~shellbuckle.plots.pv.family`). Saved to
         ``path`` when given; returns the matplotlib Figure."""
         from ..plots.pv import family, plot_pv
 
-        return plot_pv(family(self) if branches else [self], path)
+        return plot_pv(family(self) if branches else [self], path, units=units)
 
     @property
     def status(self) -> str:
