@@ -99,7 +99,8 @@ def test_a_run_not_located_has_the_same_table(runs):
     plain, found = runs
     assert not (plain.path / LOCATED_JSON).exists() and (found.path / LOCATED_JSON).exists()
     a, b = plain.table.drop(columns="wall_s"), found.table.drop(columns="wall_s")
-    assert a.equals(b)
+    assert "shape" in b and "shape" not in a  # the location stored the steps' classes
+    assert a.equals(b[a.columns])
     assert (plain.positions(-1) == found.positions(-1)).all()
 
 

@@ -47,7 +47,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .analysis.classify import ANALYSIS_VERSION, classify
+from .analysis.classify import ANALYSIS_VERSION, analyze_run, classify, is_current
 from .analysis.events import events as run_events
 from .mesh.mesh import Mesh
 from .params import ShellParameters
@@ -119,7 +119,11 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     if why is not None:
         log.info("%s: events not located: %s", run.path, why)
         return {}
-    found = {e.name: e for e in run_events(run, located=False) if e.name in names}
+    analysis = run.store.analysis()
+    missing = [k for k in run.steps if not is_current(analysis.get(k))]
+    if missing:  # the classes of the steps, stored: the events, the figure and the table use them
+        analyze_run(run, steps=missing)
+    found = {e.name: e for e in run_events(Run.of(run.path), located=False) if e.name in names}
     stored = {} if again else read_located(run.path)
     out, todo = {}, []
     for name, event in found.items():

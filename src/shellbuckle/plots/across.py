@@ -118,9 +118,20 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
             ok = np.isfinite(y)
             if not ok.any():
                 continue
-            ax.plot(gammas[ok], y[ok], marker, ls="none", ms=6, color=color,
-                    mfc=color if name != "axisymmetry_loss" else "none", label=f"{label} (ours)",
-                    gid=name)
+            width = runs.get(f"{name}_resolution")
+            width = (np.full(len(y), np.nan) if width is None
+                     else pd.to_numeric(width, errors="coerce").to_numpy(float))
+            located = np.isfinite(width) & (width < 0.5 * np.nanmedian(runs["dv"].to_numpy(float)))
+            how = ("located" if located[ok].all() else "read at the steps" if not located[ok].any()
+                   else "located where marked with a bar")
+            bars = ax.errorbar(gammas[ok], y[ok],
+                               yerr=np.where(np.isfinite(width[ok]), width[ok] / 2, 0),
+                               fmt=marker, ms=6, color=color, capsize=2, elinewidth=0.8,
+                               mfc=color if name != "axisymmetry_loss" else "none",
+                               label=f"{label} (ours, {how})")
+            bars.lines[0].set_gid(name)  # the markers; the bars: the interval each lies in
+            for cap in bars.lines[1]:
+                cap.set_gid(f"{name}_interval")
         for key, style, label in (("primary", "-", "primary"), ("secondary", "-", "secondary")):
             if key in fits:
                 ax.plot(grid, fits[key](grid), style, color="C0" if key == "primary" else "C3",
