@@ -26,11 +26,15 @@ def report_run(run, *, plot: bool = False) -> int:
     if points:
         print_located(run, points)
     if plot:
+        from ..plots.pv import family, plot_pv
         from ..plots.run import plot_deflation
 
         path = run.path / "deflation.png"
         plot_deflation(run, path=path)
         print(f"figure: {path}")
+        path = run.path / "pv.png"
+        plot_pv(family(run), path)
+        print(f"pressure-volume figure: {path}")
     return 0
 
 
