@@ -2,8 +2,8 @@
 
 A :class:`SweepSpec` is a grid: every combination of ``gamma``, ``nu``, mesh (randomized
 spheres of ``vertices`` vertices, and icosahedral spheres of ``icosphere`` levels), ``seeds``
-and the protocol options ``dv``, ``until``, ``c0_cycle``, ``jiggle``, ``bending`` and
-``method`` is one run. :func:`run_sweep` gives each run its own run folder in the sweep folder,
+and the protocol options ``dv``, ``until``, ``c0_cycle``, ``jiggle``, ``bending``,
+``method`` and the smooth imperfection (``smooth_jiggle``, ``smooth_degree``) is one run. :func:`run_sweep` gives each run its own run folder in the sweep folder,
 named from its parameters (:func:`run_name`, e.g. ``g2333_nu0.333_v3594_s0``), runs them as
 Dask tasks and rewrites the catalogue (:mod:`shellbuckle.store.catalogue`) as they finish::
 
@@ -66,7 +66,10 @@ PAPER_VERTICES = 3594
 LOCK_POLL_S = 2.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
-         "bending", "method", "energy_convention")
+         "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree")
+#: Axes of the smooth imperfection: left out of ``sweep.json`` and of the run points while
+#: unset, so that a sweep stored before them resumes with the same description.
+SMOOTH_AXES = ("smooth_jiggle", "smooth_degree")
 
 
 def _bending_kinds() -> tuple:
@@ -138,7 +141,15 @@ class SweepSpec:
       [0, 0.5], replacing the temperature for those runs; default none), ``bending``
       (``juelicher`` or ``evolver``), ``method`` (``newton``, ``alternate``, ``cg``, ``gd``);
     - ``energy_convention``: which bending energy kappa multiplies (``helfrich``, the default,
-      ``paper`` or ``evolver-modulus``; :mod:`shellbuckle.params`).
+      ``paper`` or ``evolver-modulus``; :mod:`shellbuckle.params`);
+    - ``smooth_jiggle`` (rms normal displacement in units of R, in [0, 0.1]; default None: the
+      per-vertex jiggle) and ``smooth_degree`` (highest spherical-harmonic degree L, integers
+      in [2, 400]; None: :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`): the smooth
+      imperfection of :mod:`shellbuckle.protocol.imperfection`, the same field on any mesh
+      (for mesh refinement). It replaces Surface Evolver's jiggle in those runs: a sweep with
+      smooth amplitudes only refuses ``jiggle`` and a ``temperature`` other than the default;
+      ``None`` among the amplitudes adds the per-vertex runs too. ``smooth_degree`` needs an
+      amplitude.
 
     ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
     with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
@@ -160,6 +171,8 @@ class SweepSpec:
     bending: tuple = ("juelicher",)
     method: tuple = ("newton",)
     energy_convention: tuple = ("helfrich",)
+    smooth_jiggle: tuple = (None,)
+    smooth_degree: tuple = (None,)
     tol: float = 1e-9
     max_iter: int = DEFAULT_MAX_ITER
     stop_at_contact: bool = True
@@ -203,6 +216,7 @@ class SweepSpec:
             put(name, values)
         put("energy_convention", tuple(_convention(c) for c in
                                        _values("energy_convention", self.energy_convention)))
+        self._check_smooth(put)
         put("tol", _real("tol", self.tol, 0.0, 1e-2, allowed="0 < tol < 1e-2"))
         put("max_iter", _integer("max_iter", self.max_iter, 1, "integers >= 1"))
         if not isinstance(self.stop_at_contact, bool):
@@ -211,6 +225,37 @@ class SweepSpec:
             raise ValueError(f"no run has a volume step: every until {list(self.until)} is "
                              f"smaller than every dv {list(self.dv)}; allowed: until >= dv")
         self.points()  # refuses two grid points with the same run name
+
+    def _check_smooth(self, put) -> None:
+        """The smooth imperfection's axes: in range, and exclusive with the per-vertex jiggle
+        (:class:`~shellbuckle.protocol.deflate.Protocol` takes one or the other)."""
+        from .protocol.deflate import MAX_SMOOTH_DEGREE, MAX_SMOOTH_JIGGLE
+
+        put("smooth_jiggle", tuple(
+            None if a is None else
+            _real("smooth_jiggle", a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False, high_open=False,
+                  allowed=f"0 <= smooth_jiggle <= {MAX_SMOOTH_JIGGLE:g} (units of R), or none")
+            for a in _values("smooth_jiggle", self.smooth_jiggle)))
+        put("smooth_degree", tuple(
+            None if L is None else
+            _integer("smooth_degree", L, 2, f"integers in [2, {MAX_SMOOTH_DEGREE}], or none")
+            for L in _values("smooth_degree", self.smooth_degree)))
+        for L in self.smooth_degree:
+            if L is not None and L > MAX_SMOOTH_DEGREE:
+                raise ValueError(f"smooth_degree = {L!r} is out of range; allowed: integers in "
+                                 f"[2, {MAX_SMOOTH_DEGREE}], or none")
+        smooth = [a for a in self.smooth_jiggle if a is not None]
+        if not smooth:
+            if self.smooth_degree != (None,):
+                raise ValueError(f"smooth_degree {list(self.smooth_degree)} is the degree of the "
+                                 "smooth imperfection: give it with smooth_jiggle")
+            return
+        if None not in self.smooth_jiggle and (
+                self.jiggle != (None,) or self.temperature != (DEFAULT_TEMPERATURE,)):
+            raise ValueError(f"give either smooth_jiggle {smooth} (a smooth imperfection) or a "
+                             f"per-vertex jiggle (jiggle {list(self.jiggle)}, temperature "
+                             f"{list(self.temperature)}), not both; allowed: none among "
+                             "smooth_jiggle to add per-vertex runs")
 
     # ------------------------------------------------------------------ input
 
@@ -256,9 +301,14 @@ class SweepSpec:
         return cls.from_dict((defaults or {}) | data)
 
     def to_dict(self) -> dict:
-        """Plain JSON values (lists for the axes), as stored in ``sweep.json``."""
-        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
-                for f in fields(self)}
+        """Plain JSON values (lists for the axes), as stored in ``sweep.json``; the smooth
+        imperfection's axes only when set (a sweep without them keeps its description)."""
+        out = {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+               for f in fields(self)}
+        if self.smooth_jiggle == (None,):
+            for name in SMOOTH_AXES:
+                del out[name]
+        return out
 
     # ------------------------------------------------------------------ the grid
 
@@ -270,11 +320,16 @@ class SweepSpec:
         :func:`run_name`), in grid order (energy convention slowest, then gamma; method
         fastest)."""
         out, names = [], {}
-        # a jiggle amplitude replaces the temperature; None in ``jiggle`` means "by temperature"
-        jiggles = [(None, t) for t in self.temperature if None in self.jiggle] + \
-                  [(j, None) for j in self.jiggle if j is not None]
-        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp), bend, method \
-                in itertools.product(self.energy_convention, self.gamma, self.nu, self.meshes(),
+        # a jiggle amplitude replaces the temperature; None in ``jiggle`` means "by temperature";
+        # a smooth imperfection replaces both, None in ``smooth_jiggle`` means "per vertex"
+        jiggles = [(None, t, None, None) for t in self.temperature if None in self.jiggle] + \
+                  [(j, None, None, None) for j in self.jiggle if j is not None]
+        if None not in self.smooth_jiggle:
+            jiggles = []
+        jiggles += [(None, None, a, L) for a in self.smooth_jiggle if a is not None
+                    for L in self.smooth_degree]
+        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp, a, L), bend, \
+                method in itertools.product(self.energy_convention, self.gamma, self.nu, self.meshes(),
                                      self.seeds, self.dv, self.until, self.c0_cycle, jiggles,
                                      self.bending, self.method):
             point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
@@ -284,6 +339,8 @@ class SweepSpec:
                      "method": method, "energy_convention": convention,
                      "tol": self.tol, "max_iter": self.max_iter,
                      "stop_at_contact": self.stop_at_contact}
+            if a is not None:  # only then: the points of earlier sweeps keep their keys
+                point.update(smooth_jiggle=a, smooth_degree=L)
             name = run_name(point)
             if name in names:
                 raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
@@ -300,7 +357,8 @@ class SweepSpec:
 def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
-    ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>``, ``_<bending>``, ``_<method>``,
+    ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>`` or ``_sj<smooth_jiggle>[_L<degree>]``,
+    ``_<bending>``, ``_<method>``,
     ``_it<max_iter>``, ``_<energy convention>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
@@ -312,7 +370,11 @@ def run_name(point: dict) -> str:
         name += f"_until{_fmt(point['until'])}"
     if not point["c0_cycle"]:
         name += "_noc0"
-    if point.get("jiggle") is not None:
+    if point.get("smooth_jiggle") is not None:
+        name += f"_sj{_fmt(point['smooth_jiggle'])}"
+        if point.get("smooth_degree") is not None:
+            name += f"_L{point['smooth_degree']}"
+    elif point.get("jiggle") is not None:
         name += f"_j{_fmt(point['jiggle'])}"
     elif point.get("temperature", DEFAULT_TEMPERATURE) != DEFAULT_TEMPERATURE:
         name += f"_T{_fmt(point['temperature'])}"
@@ -380,6 +442,8 @@ def _deflate(point: dict, folder: Path):
             return deflate(mesh, params, dv=point["dv"], until=point["until"],
                            c0_cycle=point["c0_cycle"], jiggle=point["jiggle"],
                            temperature=point.get("temperature"),
+                           smooth_jiggle=point.get("smooth_jiggle"),
+                           smooth_degree=point.get("smooth_degree"),
                            seed=point["seed"], bending=point["bending"], method=point["method"],
                            tol=point["tol"], max_iter=point.get("max_iter", DEFAULT_MAX_ITER),
                            stop_at_contact=point["stop_at_contact"],

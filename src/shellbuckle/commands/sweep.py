@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from ._checks import (RANGES, add_command, allowed, check_mesh, check_value, input_file,
-                      output_folder)
+from ._checks import (RANGES, add_command, allowed, check_mesh, check_smooth_degree,
+                      check_value, input_file, output_folder)
 from ._options import add_protocol_options, add_shell_options, default_gamma, values
 
 #: The protocol axes of a sweep (SweepSpec fields), as comma-separated lists.
@@ -13,11 +13,12 @@ PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
 #: Each list option's kind; the names are SweepSpec's fields.
 KINDS = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
          "dv": float, "until": float, "jiggle": float, "temperature": float, "bending": str,
-         "method": str, "energy_convention": str}
+         "method": str, "energy_convention": str, "smooth_jiggle": float, "smooth_degree": int}
 #: The range (a name of ``_checks.RANGES``) of each numeric axis.
 SPANS = {"gamma": "gamma", "nu": "nu", "seeds": "seed", "vertices": "vertices",
          "icosphere": "icosphere", "dv": "dv", "until": "until_deflated", "jiggle": "jiggle",
-         "temperature": "temperature"}
+         "temperature": "temperature", "smooth_jiggle": "smooth_jiggle",
+         "smooth_degree": "smooth_degree"}
 #: Runs of one sweep at most.
 MAX_RUNS = 10_000
 
@@ -46,6 +47,15 @@ def register(sub) -> None:
                              + allowed("icosphere"))
     add_protocol_options(parser, PROTOCOL, listed=True, flags={"seed": "--seeds"})
     add_protocol_options(parser, ("c0_cycle",))
+    parser.add_argument("--smooth-jiggle", metavar="A,..",
+                        help="comma-separated list of: rms amplitudes (units of R) of the smooth "
+                             "imperfection that replaces the per-vertex jiggle, the same field "
+                             "on any mesh (docs/mesh-convergence.md); "
+                             + allowed("smooth_jiggle"))
+    parser.add_argument("--smooth-degree", metavar="L,..",
+                        help="comma-separated list of: highest degrees L of the smooth "
+                             "imperfection (default 20); every mesh must resolve it with 4 "
+                             "mean edges per wavelength 2 pi R/L; " + allowed("smooth_degree"))
     parser.add_argument("--workers", metavar="N", help="local worker processes (default: "
                         "cores); " + allowed("workers"))
     parser.add_argument("--scheduler", metavar="ADDR",
@@ -140,3 +150,13 @@ def _check(spec, given: dict, config, gamma_text=None) -> None:
     gamma = max(spec.gamma)
     n, mesh = min(meshes)
     check_mesh("--gamma", gamma_text or f"{gamma:g}", gamma, n, gamma_effective=gamma / factor, mesh=mesh)
+    if any(a is not None for a in spec.smooth_jiggle):
+        from ..protocol.imperfection import DEFAULT_DEGREE
+
+        degree = max(DEFAULT_DEGREE if L is None else L for L in spec.smooth_degree)
+        if None not in spec.smooth_degree:
+            option, text = "--smooth-degree", degree
+        else:
+            option = "--smooth-jiggle"
+            text = ",".join(f"{a:g}" for a in spec.smooth_jiggle if a is not None)
+        check_smooth_degree(option, text, degree, n, mesh=mesh)
