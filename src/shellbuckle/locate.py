@@ -161,10 +161,6 @@ def _context(run: Run, threads):
     return ctx
 
 
-def _target(run: Run, k: int) -> float:
-    return 0.0 if k == 0 else float(run.protocol.schedule[k - 1])
-
-
 def _side(ctx, X, record: dict, shape: str) -> dict:
     keys = ("dV_over_V", "E_total", "E_bend", "E_stretch", "E_over_kappa", "pressure",
             "grad_norm", "converged", "inertia")
@@ -187,15 +183,16 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     t0 = time.perf_counter()
     k = event.step
     wanted = EVENT_SHAPES[event.name]
-    lo, hi = _target(run, k - 1), _target(run, k)
-    table = run.table.set_index("step")
     X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
     X_hi, rec_hi = run.positions(k), run.store.record(k)
-    shape_lo = str(table.loc[k - 1, "shape"]) if "shape" in table else classify(X_lo, run.faces).shape
-    shape_hi = str(table.loc[k, "shape"]) if "shape" in table else classify(X_hi, run.faces).shape
+    rec_hi_step = rec_hi["dV_over_V"]
+    # the volumes reached (a branch's step 0 is its parent's step, not the sphere)
+    lo, hi = float(rec_lo["dV_over_V"]), float(rec_hi["dV_over_V"])
+    shape_lo, shape_hi = classify(X_lo, run.faces).shape, classify(X_hi, run.faces).shape
     lowest_start = _lowest(ctx, X_lo)
     lo_start = lo
     # the old branch one stored step earlier, for the eigenvalue's trend if lo does not move
+    before = float(run.store.record(k - 2)["dV_over_V"]) if k >= 2 else math.nan
     lowest_before = _lowest(ctx, run.positions(k - 2)) if k >= 2 else math.nan
     protocol = ctx.protocol
     evaluations, failure = [], None
@@ -229,10 +226,10 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     if lo > lo_start:
         trend = (lo_start, lowest_start, lo, old["lowest_eigenvalue"])
     else:
-        trend = (_target(run, k - 2) if k >= 2 else math.nan, lowest_before, lo, lowest_start)
+        trend = (before, lowest_before, lo, lowest_start)
     jump = _jump(old, new, ctx.V0 * (hi - lo))
     if jump:
-        mechanism, zero_at = _mechanism(*trend, _target(run, k) - lo_start)
+        mechanism, zero_at = _mechanism(*trend, float(rec_hi_step) - lo_start)
     else:
         mechanism, zero_at = "continuous", None
     return {
