@@ -1,0 +1,437 @@
+"""The mesh-refinement study: do the buckling thresholds, W and the energies converge as the
+mesh is refined, and how far is the paper's mesh (3594 vertices) from the limit?
+
+One sweep (:mod:`shellbuckle.sweep`) of deflations with the smooth imperfection
+(:mod:`shellbuckle.protocol.imperfection`, the same field on every mesh, so that a refined run
+sees the same shell) over energy conventions x gamma x mesh sizes N x seeds; then, per
+(convention, gamma, imperfection) and mesh size N:
+
+- the primary threshold, the loss of axisymmetry and the wrinkle onset (dV/V, located by
+  bisection where the runs have them, :mod:`shellbuckle.locate`), ``W_mean`` (wrinkles over the
+  wrinkled steps with dV/V in [0.53, 0.76], i.e. near 0.645) as
+  :func:`shellbuckle.analysis.collect.collect_runs` gives them;
+- ``E/kappa`` at fixed dV/V (:data:`ENERGY_AT`), :func:`energy_at`: linear interpolation of the
+  stored total energy between the two stored steps around that dV/V;
+
+each averaged over seeds (mean, sample standard deviation with ``n - 1``, NaN for one seed),
+and per quantity a value extrapolated to h -> 0 in the mean edge ``h = sqrt(8 pi / (sqrt(3)
+(N - 2))) R`` (:func:`richardson`), with the discretization error of the paper's mesh relative
+to it. :func:`run_study` runs the sweep and writes ``refinement.md``, ``refinement.csv`` and
+``refinement.png`` (:func:`write_report`); :func:`report` rebuilds them from the runs.
+
+Reference for the protocol: Quilliet et al., Eur. Phys. J. E 27, 13 (2008), §4.1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: The issue's three gamma labels and its two readings of the bending energy.
+GAMMAS = (2333.0, 15163.0, 29160.0)
+CONVENTIONS = ("paper", "helfrich")
+#: Mesh sizes of the study; the paper's randomized sphere is the first.
+PAPER_VERTICES = 3594
+VERTICES = (PAPER_VERTICES, 10_000, 40_000)
+#: dV/V at which E/kappa is compared across meshes (before, around and after buckling).
+ENERGY_AT = (0.1, 0.3, 0.5)
+#: Order of the discretization error assumed when it cannot be fitted (two meshes): the
+#: bending and stretching energies of the discrete shell converge as h^2 on smooth shapes.
+ASSUMED_ORDER = 2.0
+#: Fitted orders outside (0, MAX_ORDER] mean the sequence is not in its asymptotic regime.
+MAX_ORDER = 20.0
+#: Surface Evolver's jiggle at the paper's temperature 0.05: std 0.028 R per coordinate.
+PAPER_JIGGLE_SIGMA = 0.028
+#: The thresholds as collect_runs names them, with their labels.
+THRESHOLDS = {"primary_dV_over_V": "primary buckling dV/V",
+              "axisymmetry_loss_dV_over_V": "loss of axisymmetry dV/V",
+              "wrinkles_dV_over_V": "wrinkle onset dV/V",
+              "W_mean": "W near dV/V = 0.645"}
+CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
+
+
+def energy_column(at: float) -> str:
+    return f"E_over_kappa_at_{at:g}"
+
+
+def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
+    """Column name -> label of every quantity of the table, in order."""
+    return THRESHOLDS | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at}
+
+
+def mean_edge(n_vertices) -> np.ndarray:
+    """Mean edge / R of a closed near-equilateral triangulation of the sphere with
+    ``n_vertices``: its 2 (N - 2) faces cover 4 pi R^2, so h^2 = 8 pi / (sqrt(3) (N - 2))."""
+    n = np.asarray(n_vertices, dtype=float)
+    return np.sqrt(8.0 * math.pi / (math.sqrt(3.0) * (n - 2.0)))
+
+
+def paper_equivalent_amplitude(degree: int, n_vertices: int = PAPER_VERTICES,
+                               sigma: float = PAPER_JIGGLE_SIGMA) -> float:
+    """The rms (units of R) of the part of the paper's jiggle that lies in the degrees 2..L.
+
+    White noise of std ``sigma`` at the ``n_vertices`` vertices of a near-uniform mesh spreads
+    its variance evenly over about N harmonics; the ``(L + 1)^2 - 4`` of degrees 2..L hold
+    ``sigma^2 ((L + 1)^2 - 4) / N`` of it. For L = 20 on the paper's mesh: 0.0098 R. The
+    default amplitude of the study: the paper's shells felt this imperfection at the scales a
+    refined mesh keeps; the rest of the paper's jiggle is the mesh-scale noise, which changes
+    with the mesh."""
+    return sigma * math.sqrt(((degree + 1) ** 2 - 4) / n_vertices)
+
+
+# --------------------------------------------------------------------------- one run
+
+def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
+    """``E_total / kappa`` at dV/V = ``at``: linear interpolation in dV/V between the two
+    stored steps around it (the stored value at a stored step); NaN outside the dV/V the run
+    reached. Across a snap-through between the two steps the value is on the chord, not on
+    either branch (the table's step is the resolution)."""
+    dv = table["dV_over_V"].to_numpy(dtype=float)
+    E = table["E_total"].to_numpy(dtype=float) / kappa
+    order = np.argsort(dv, kind="stable")
+    dv, E = dv[order], E[order]
+    if not len(dv) or not dv[0] <= at <= dv[-1]:
+        return math.nan
+    return float(np.interp(at, dv, E))
+
+
+def _imperfection(protocol: dict) -> str:
+    if protocol.get("smooth_jiggle") is not None:
+        return f"smooth {protocol['smooth_jiggle']:.3g} R, L <= {protocol.get('smooth_degree')}"
+    if protocol.get("jiggle") is not None:
+        return f"jiggle {protocol['jiggle']:g} edge"
+    return f"jiggle T = {protocol.get('temperature'):g}"
+
+
+def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
+    """One row per finished run of ``paths`` (run or sweep folders): the columns of
+    :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description)
+    and ``E_over_kappa_at_<a>`` for each ``a`` of ``energy_at_values``."""
+    from ..analysis.collect import collect_runs
+    from ..store.run import RunStore
+
+    tables: dict = {}
+    runs = collect_runs(paths, tables=tables)
+    runs = runs[runs["status"] == "finished"].reset_index(drop=True)
+    imperfections, energies = [], {a: [] for a in energy_at_values}
+    for path in runs["path"]:
+        meta = RunStore.open(path).meta
+        imperfections.append(_imperfection(meta.get("protocol", {})))
+        kappa = float(meta["params"]["kappa"])
+        for a in energy_at_values:
+            energies[a].append(energy_at(tables[path], kappa, a))
+    runs["imperfection"] = imperfections
+    for a in energy_at_values:
+        runs[energy_column(a)] = energies[a]
+    return runs
+
+
+# --------------------------------------------------------------------------- extrapolation
+
+@dataclasses.dataclass(frozen=True)
+class Extrapolation:
+    """``q(h) = value + c h^order`` through the finest meshes; ``method`` says how the order
+    was had: ``fitted`` (three meshes, monotone), ``assumed`` (:data:`ASSUMED_ORDER`, two
+    meshes), ``equal`` (the two finest give the same value), ``not converged`` (value NaN:
+    three that are not monotone, or a fitted order outside (0, :data:`MAX_ORDER`]), ``no
+    value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one)."""
+
+    value: float
+    order: float
+    c: float
+    method: str
+
+    def curve(self, h) -> np.ndarray:
+        return self.value + self.c * np.asarray(h, dtype=float) ** self.order
+
+    def describe(self) -> str:
+        if self.method == "fitted":
+            return f"order {self.order:.2f} fitted (3 meshes)"
+        if self.method == "assumed":
+            return f"order {self.order:g} assumed (2 meshes)"
+        if self.method == "equal":
+            return "two finest meshes equal"
+        if self.method == "no value":
+            return "no value on any mesh"
+        if self.method == "one mesh":
+            return "value on one mesh only"
+        return "not converged"
+
+
+NOT_CONVERGED = Extrapolation(math.nan, math.nan, math.nan, "not converged")
+#: No mesh has the value (the event did not happen, or dV/V was not reached), or only one.
+NO_VALUE = Extrapolation(math.nan, math.nan, math.nan, "no value")
+ONE_MESH = Extrapolation(math.nan, math.nan, math.nan, "one mesh")
+
+
+def _order(h, q) -> float | None:
+    """The p with (q1 - q2)/(q2 - q3) = (h1^p - h2^p)/(h2^p - h3^p), h1 > h2 > h3, or None
+    when none lies in (0, MAX_ORDER]. The right side grows monotonically with p."""
+    from scipy.optimize import brentq
+
+    (h1, h2, h3), (q1, q2, q3) = h, q
+    target = math.log((q1 - q2) / (q2 - q3))
+
+    def gap(p):
+        return math.log((h1 ** p - h2 ** p) / (h2 ** p - h3 ** p)) - target
+
+    low, high = 1e-6, MAX_ORDER
+    if gap(low) > 0 or gap(high) < 0:
+        return None
+    return float(brentq(gap, low, high, xtol=1e-14, rtol=1e-14))
+
+
+def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER) -> Extrapolation:
+    """Richardson extrapolation of ``q`` (values) at mesh sizes ``h`` to h -> 0.
+
+    NaN values are left out and the finest meshes used: with three or more, the three finest
+    fit ``q = q0 + c h^p`` exactly when the sequence is monotone (else: not converged); with
+    two, the order is ``assumed_order``: ``q0 = q2 + (q2 - q1) h2^p / (h1^p - h2^p)``."""
+    h, q = np.asarray(h, dtype=float), np.asarray(q, dtype=float)
+    keep = np.isfinite(h) & np.isfinite(q)
+    order = np.argsort(-h[keep], kind="stable")
+    h, q = h[keep][order], q[keep][order]
+    if len(h) < 2 or len(np.unique(h)) < len(h):
+        return NO_VALUE if not len(h) else ONE_MESH if len(h) == 1 else NOT_CONVERGED
+    if q[-1] == q[-2]:
+        return Extrapolation(float(q[-1]), math.nan, 0.0, "equal")
+    if len(h) >= 3:
+        h, q = h[-3:], q[-3:]
+        d1, d2 = q[1] - q[0], q[2] - q[1]
+        if d1 * d2 <= 0:
+            return NOT_CONVERGED
+        p = _order(h, q)
+        if p is None:
+            return NOT_CONVERGED
+        method = "fitted"
+    else:
+        p, method = float(assumed_order), "assumed"
+    c = (q[-2] - q[-1]) / (h[-2] ** p - h[-1] ** p)
+    return Extrapolation(float(q[-1] - c * h[-1] ** p), p, float(c), method)
+
+
+# --------------------------------------------------------------------------- the table
+
+GROUP = ["energy_convention", "gamma", "nu", "imperfection"]
+COLUMNS = (*GROUP, "quantity", "label", "n_vertices", "h", "mean", "std", "n_seeds",
+           "extrapolated", "order", "method", "paper_mesh_value", "paper_mesh_error",
+           "paper_mesh_relative_error")
+
+
+def _spread(values: np.ndarray) -> tuple[float, float, int]:
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return math.nan, math.nan, 0
+    std = float(values.std(ddof=1)) if len(values) > 1 else math.nan
+    return float(values.mean()), std, len(values)
+
+
+def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataFrame:
+    """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
+    (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
+    sample std and the seeds that have it; per group and quantity the extrapolation
+    (:func:`richardson` on the means) and the paper's mesh's error ``q(3594) - q0`` (absolute,
+    and relative to ``|q0|``)."""
+    rows = []
+    if runs.empty:
+        return pd.DataFrame(rows, columns=list(COLUMNS))
+    for key, group in runs.groupby(GROUP, sort=True):
+        sizes = sorted(group["n_vertices"].astype(int).unique())
+        for quantity, label in quantities(energy_at_values).items():
+            stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
+                                .to_numpy(dtype=float)) for n in sizes}
+            fit = richardson(mean_edge(sizes), [stats[n][0] for n in sizes])
+            paper = stats.get(PAPER_VERTICES, (math.nan,))[0]
+            error = paper - fit.value
+            relative = error / abs(fit.value) if fit.value else math.nan
+            for n in sizes:
+                rows.append(dict(zip(GROUP, key)) | {
+                    "quantity": quantity, "label": label, "n_vertices": n,
+                    "h": float(mean_edge(n)), "mean": stats[n][0], "std": stats[n][1],
+                    "n_seeds": stats[n][2], "extrapolated": fit.value, "order": fit.order,
+                    "method": fit.describe(), "paper_mesh_value": paper,
+                    "paper_mesh_error": error, "paper_mesh_relative_error": relative})
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
+# --------------------------------------------------------------------------- the study
+
+def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
+               smooth_jiggle: float | None = None, smooth_degree: int | None = None,
+               until: float = 0.95):
+    """The study's :class:`~shellbuckle.sweep.SweepSpec`: the paper's protocol (dv = 0.019,
+    the c0 cycle, Newton) with the smooth imperfection of rms ``smooth_jiggle`` R (default
+    :func:`paper_equivalent_amplitude`) up to degree ``smooth_degree`` (default
+    :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`)."""
+    from ..protocol.imperfection import DEFAULT_DEGREE
+    from ..sweep import SweepSpec
+
+    degree = DEFAULT_DEGREE if smooth_degree is None else smooth_degree
+    if smooth_jiggle is None:
+        smooth_jiggle = round(paper_equivalent_amplitude(degree), 5)
+    return SweepSpec(gamma=list(gammas), energy_convention=list(conventions),
+                     vertices=list(vertices), seeds=list(seeds), until=until,
+                     smooth_jiggle=smooth_jiggle, smooth_degree=degree)
+
+
+def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
+              smooth_jiggle: float | None = None, smooth_degree: int | None = None,
+              until: float = 0.95, workers: int | None = None, scheduler=None,
+              progress: bool = True, energy_at_values=ENERGY_AT) -> pd.DataFrame:
+    """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
+    finished are skipped), then write its report (:func:`write_report`) from the runs of this
+    spec; returns the refinement table."""
+    from ..sweep import run_sweep
+
+    spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
+                      smooth_degree=smooth_degree, until=until)
+    run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
+    folders = [Path(out) / p["name"] for p in spec.points()]
+    return report(out, [f for f in folders if f.exists()], energy_at_values=energy_at_values)
+
+
+def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
+    """Build the refinement table of the finished runs in ``paths`` (default: every run of the
+    sweep folder ``out``) and write it in ``out`` (:func:`write_report`); returns it."""
+    paths = [out] if paths is None else list(paths)
+    runs = collect(paths, energy_at_values) if paths else pd.DataFrame(
+        columns=[*GROUP, "n_vertices", *quantities(energy_at_values)])
+    table = refinement_table(runs, energy_at_values)
+    write_report(table, out, n_runs=len(runs))
+    return table
+
+
+# --------------------------------------------------------------------------- the report
+
+def _cell(mean: float, std: float, n: int) -> str:
+    if not math.isfinite(mean):
+        return "–"
+    text = f"{mean:.4g}"
+    if math.isfinite(std):
+        text += f" ± {std:.2g}"
+    return text + (f" ({n} seeds)" if n > 1 else "")
+
+
+def _error(row) -> str:
+    error, relative = row["paper_mesh_error"], row["paper_mesh_relative_error"]
+    if not math.isfinite(error):
+        return "–"
+    return f"{error:+.3g}" + (f" ({100 * relative:+.2g} %)" if math.isfinite(relative) else "")
+
+
+def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
+    """The table as a physicist reads it: per convention and gamma, one line per quantity with
+    its value on every mesh (the paper's first), the value extrapolated to h -> 0, how, and
+    the paper's mesh's error relative to it."""
+    lines = ["# Mesh refinement", "",
+             ("Mean over seeds ± sample standard deviation; h is the mean edge "
+             "sqrt(8 pi/(sqrt(3)(N - 2))) R. Extrapolated: Richardson in h (the order fitted "
+             "from the three finest meshes when they are monotone, else the order 2 assumed "
+             "from two meshes, else not converged). Error of the paper's mesh: "
+             f"q(N = {PAPER_VERTICES}) - q(h -> 0), and relative to |q(h -> 0)|. E/kappa is "
+             "interpolated linearly in dV/V between the two stored steps around the given "
+             "dV/V."), ""]
+    if n_runs is not None:
+        lines += [f"Finished runs: {n_runs}.", ""]
+    if table.empty:
+        return "\n".join(lines + ["No finished run yet.", ""])
+    for key, group in table.groupby(GROUP, sort=True):
+        convention, gamma, nu, imperfection = key
+        sizes = sorted(group["n_vertices"].unique())
+        finest = sizes[-1]
+        heads = [f"N = {n} (h = {mean_edge(n):.3g} R)" + (", paper" if n == PAPER_VERTICES
+                                                             else ", finest" if n == finest
+                                                             else "") for n in sizes]
+        lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
+                  "| quantity | " + " | ".join(heads) + " | h -> 0 | extrapolation | "
+                  "error of the paper's mesh |",
+                  "|---" * (len(sizes) + 4) + "|"]
+        for quantity, rows in group.groupby("quantity", sort=False):
+            rows = rows.set_index("n_vertices")
+            first = rows.iloc[0]
+            cells = [_cell(rows.loc[n, "mean"], rows.loc[n, "std"], rows.loc[n, "n_seeds"])
+                     for n in sizes]
+            value = first["extrapolated"]
+            lines.append(f"| {first['label']} | " + " | ".join(cells) + " | "
+                         + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
+                         + f"{first['method']} | {_error(first)} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def figure(table: pd.DataFrame):
+    """Each quantity against h (seed means with their spread) per convention and gamma, with
+    its extrapolation: the curve q0 + c h^p over the meshes it used and q0 at h = 0."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    names = list(dict.fromkeys(table["quantity"])) or ["primary_dV_over_V"]
+    ncols = min(4, len(names))
+    nrows = math.ceil(len(names) / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 2.8 * nrows + 0.6),
+                             squeeze=False, layout="constrained")
+    groups = list(table.groupby(GROUP, sort=True)) if not table.empty else []
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.8, max(len(groups), 1)))
+    for ax, name in zip(axes.flat, names):
+        for colour, (key, group) in zip(colours, groups):
+            rows = group[group["quantity"] == name].sort_values("h")
+            if rows.empty:
+                continue
+            label = f"{key[0]}, gamma = {key[1]:g}"
+            ax.errorbar(rows["h"], rows["mean"], yerr=rows["std"].fillna(0.0), marker="o",
+                        ms=4, lw=1, color=colour, label=label, capsize=2)
+            first = rows.iloc[0]
+            if math.isfinite(first["extrapolated"]):
+                order = first["order"] if math.isfinite(first["order"]) else 0.0
+                used = rows.dropna(subset=["mean"])["h"].to_numpy()[:3]
+                h = np.linspace(0.0, used.max(), 50)
+                c = _c(rows, first["extrapolated"], order)
+                ax.plot(h, first["extrapolated"] + c * h ** order, ls="--", lw=0.8,
+                        color=colour)
+                ax.plot([0.0], [first["extrapolated"]], marker="*", ms=8, color=colour)
+        if not np.isfinite(table.loc[table["quantity"] == name, "mean"]
+                           .to_numpy(dtype=float)).any():
+            ax.text(0.5, 0.5, "no value on any mesh", ha="center", va="center",
+                    transform=ax.transAxes, fontsize=8, color="0.3")
+            ax.set_yticks([])
+        ax.set_xlim(0.0, 1.05 * float(table["h"].max()) if not table.empty else 1.0)
+        ax.set_xlabel("mean edge h / R")
+        ax.set_title(str(table.loc[table["quantity"] == name, "label"].iloc[0])
+                     if name in set(table["quantity"]) else name, fontsize=9)
+        ax.axvline(float(mean_edge(PAPER_VERTICES)), color="0.5", lw=0.6, ls=":")
+    for ax in list(axes.flat)[len(names):]:
+        ax.set_visible(False)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(3, len(labels)),
+                   fontsize=8)
+    fig.suptitle("Mesh refinement: values against the mean edge h (dotted: the paper's mesh; "
+                 "star: h -> 0)", fontsize=9)
+    return fig
+
+
+def _c(rows: pd.DataFrame, value: float, order: float) -> float:
+    """The coefficient c of q0 + c h^p through the finest mesh of ``rows``."""
+    finest = rows.dropna(subset=["mean"]).iloc[0]
+    return 0.0 if order == 0.0 else (finest["mean"] - value) / finest["h"] ** order
+
+
+def write_report(table: pd.DataFrame, out, *, n_runs: int | None = None) -> list[Path]:
+    """Write ``refinement.csv``, ``refinement.md`` and ``refinement.png`` in ``out``."""
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / CSV, out / MARKDOWN, out / FIGURE]
+    table.to_csv(paths[0], index=False, lineterminator="\n")
+    paths[1].write_text(markdown(table, n_runs=n_runs), encoding="utf-8")
+    fig = figure(table)
+    fig.savefig(paths[2], dpi=150)
+    plt.close(fig)
+    return paths

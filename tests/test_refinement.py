@@ -1,0 +1,142 @@
+"""The mesh-refinement study: Richardson extrapolation, E/kappa at a fixed dV/V, and the
+whole ``shellbuckle refine`` command on tiny meshes.
+
+Oracles: synthetic sequences q(h) = q0 + c h^p whose limit and order are known; the stored
+table value at a stored step; the thresholds and W that ``collect_runs`` reads from the same
+run folders, and E/kappa interpolated here with NumPy from each run's table.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from shellbuckle.analysis.collect import collect_runs
+from shellbuckle.cli import main as cli_main
+from shellbuckle.run import Run
+from shellbuckle.studies import refinement
+from shellbuckle.studies.refinement import energy_at, mean_edge, richardson
+
+
+@pytest.mark.parametrize("q0, c, p", [(0.25, 1.3, 2.0), (7.0, -0.4, 1.0), (-3.0, 2.0, 1.5),
+                                      (0.6, 0.05, 3.2)])
+@pytest.mark.parametrize("vertices", [(3594, 10_000, 40_000), (300, 600, 2000, 9000)])
+def test_richardson_recovers_limit_and_order_of_a_power_law(q0, c, p, vertices):
+    h = mean_edge(vertices)  # unequal ratios between the meshes
+    fit = richardson(h, q0 + c * h ** p)
+    assert fit.method == "fitted"
+    assert fit.order == pytest.approx(p, rel=1e-9)
+    assert fit.value == pytest.approx(q0, rel=1e-9, abs=1e-12)
+    assert fit.c == pytest.approx(c, rel=1e-7)
+
+
+@pytest.mark.parametrize("q0, c", [(0.25, 1.3), (-2.0, -5.0)])
+def test_two_meshes_with_assumed_order_2_are_exact_for_p_2(q0, c):
+    h = mean_edge([3594, 10_000])
+    fit = richardson(h, q0 + c * h ** 2)
+    assert fit.method == "assumed" and fit.order == 2.0
+    assert fit.value == pytest.approx(q0, rel=1e-12)
+    assert "assumed" in fit.describe()
+
+
+def test_a_sequence_that_is_not_monotone_or_diverges_is_not_extrapolated():
+    h = mean_edge([3594, 10_000, 40_000])
+    assert richardson(h, [1.0, 2.0, 1.5]).method == "not converged"
+    assert richardson(h, [1.0, 1.1, 1.5]).method == "not converged"  # increments grow
+    assert math.isnan(richardson(h, [1.0, 2.0, 1.5]).value)
+    assert richardson(h, [math.nan] * 3).method == "no value"
+    assert richardson(h, [math.nan, 1.0, math.nan]).method == "one mesh"
+    # a missing coarse value leaves two meshes: the assumed order
+    assert richardson(h, [math.nan, 1.0, 1.2]).method == "assumed"
+
+
+def test_energy_at_a_stored_step_is_the_stored_value_and_linear_between():
+    table = pd.DataFrame({"dV_over_V": [0.0, 0.019, 0.038, 0.057],
+                          "E_total": [2.0, 3.0, 5.0, 4.0]})
+    kappa = 0.5
+    for dv, E in zip(table["dV_over_V"], table["E_total"]):
+        assert energy_at(table, kappa, dv) == E / kappa
+    assert energy_at(table, kappa, 0.0285) == pytest.approx((3.0 + 5.0) / 2 / kappa)
+    assert math.isnan(energy_at(table, kappa, 0.06))
+
+
+def test_default_amplitude_is_the_papers_jiggle_in_the_resolved_degrees():
+    # white noise of std sigma at N vertices: sigma^2 M / N in M = (L+1)^2 - 4 harmonics
+    assert refinement.paper_equivalent_amplitude(20) == pytest.approx(
+        0.028 * math.sqrt(437 / 3594))
+    spec = refinement.study_spec(smooth_degree=6)
+    assert spec.smooth_jiggle == (round(0.028 * math.sqrt(45 / 3594), 5),)
+
+
+# --------------------------------------------------------------------------- the command
+
+ARGS = ["--gamma", "271", "--energy-convention", "helfrich", "--vertices", "300,600",
+        "--smooth-degree", "6", "--until", "0.3", "--workers", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("refine") / "study"
+    assert cli_main(["refine", *ARGS, "--out", str(out)]) == 0
+    return out
+
+
+def test_the_command_writes_the_table_equal_to_the_runs(study):
+    for name in (refinement.CSV, refinement.MARKDOWN, refinement.FIGURE):
+        assert (study / name).stat().st_size > 0
+    table = pd.read_csv(study / refinement.CSV)
+    runs = collect_runs([study])
+    assert sorted(runs["n_vertices"]) == [300, 600]
+    assert (runs["status"] == "finished").all()
+    for _, run in runs.iterrows():
+        rows = table[table["n_vertices"] == run["n_vertices"]].set_index("quantity")
+        for name in ("primary_dV_over_V", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
+                     "W_mean"):
+            np.testing.assert_equal(rows.loc[name, "mean"], run[name])
+        t = Run.open(run["path"]).table
+        for at in refinement.ENERGY_AT:
+            dv = t["dV_over_V"].to_numpy(float)
+            expected = np.interp(at, dv, t["E_total"].to_numpy(float)) \
+                if dv.min() <= at <= dv.max() else math.nan
+            np.testing.assert_allclose(rows.loc[refinement.energy_column(at), "mean"],
+                                       expected, rtol=1e-12)
+    primary = table[table["quantity"] == "primary_dV_over_V"]
+    assert np.isfinite(primary["mean"]).all()  # gamma = 271 buckles before dV/V = 0.3
+    assert (primary["method"] == "order 2 assumed (2 meshes)").all()
+    text = (study / refinement.MARKDOWN).read_text()
+    assert "primary buckling dV/V" in text and "N = 600" in text
+
+
+def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
+    steps = {p: p.stat().st_mtime_ns for p in study.glob("g*/steps/*")}
+    (study / refinement.CSV).unlink()
+    assert cli_main(["refine", *ARGS, "--out", str(study)]) == 0
+    assert {p: p.stat().st_mtime_ns for p in study.glob("g*/steps/*")} == steps
+    before = (study / refinement.CSV).read_text()
+    (study / refinement.CSV).unlink()
+    assert cli_main(["refine", "--report-only", "--out", str(study)]) == 0
+    assert (study / refinement.CSV).read_text() == before
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["--gamma", "271,abc"], "'abc'"),
+    (["--vertices", "300"], "--vertices 300"),
+    (["--vertices", "300,600", "--gamma", "1e6"], "--vertices 300,600"),
+    (["--gamma", "271", "--vertices", "300,600", "--smooth-degree", "9"], "--smooth-degree 9"),
+    (["--gamma", "271", "--vertices", "300,600"], "--vertices 300,600"),  # degree 20
+    (["--energy-convention", "helfrich,kirchhoff"], "kirchhoff"),
+    (["--smooth-jiggle", "0.5"], "--smooth-jiggle 0.5"),
+    (["--until", "0.01"], "--until 0.01"),
+    (["--workers", "0"], "--workers 0"),
+    (["--seeds", "0-200"], "--seeds 0-200"),
+    (["--report-only"], "no study"),
+])
+def test_bad_input_exits_2_in_one_line_and_creates_nothing(tmp_path, capsys, argv, named):
+    out = tmp_path / "study"
+    assert cli_main(["refine", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert named in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
