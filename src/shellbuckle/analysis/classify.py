@@ -255,3 +255,26 @@ def analyze_run(run_or_path, steps=None, progress: bool = False):
                                                     "analysis_version": ANALYSIS_VERSION}
                            for k, c in results.items()})
     return store.table()
+
+
+def table_with_shapes(run, table=None):
+    """``table`` (default: the run's) with the analysis columns ``shape``, ``W`` and
+    ``corners`` of every step: the stored ones, the missing steps classified without writing
+    (:func:`analyze_run` stores them). ``run``: a Run, its RunStore or a folder."""
+    if table is None:
+        table = _store(run).table()
+    if "shape" not in table.columns or table["shape"].isna().any():
+        missing = (list(table["step"]) if "shape" not in table.columns
+                   else list(table.loc[table["shape"].isna(), "step"]))
+        results = classify_run(run, steps=missing)
+        table = table.copy()
+        if "shape" not in table.columns:
+            table["shape"] = None
+            table["W"] = 0
+            table["corners"] = 0
+        for k, c in results.items():
+            row = table.index[table["step"] == k]
+            table.loc[row, "shape"] = c.shape
+            table.loc[row, "W"] = c.W
+            table.loc[row, "corners"] = c.corners
+    return table

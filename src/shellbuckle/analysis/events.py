@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .classify import table_with_shapes
+
 #: Relative pressure drop at a step that confirms a snap-through (primary buckling).
 PRESSURE_DROP = 0.2
 #: A secondary threshold is the first step from which its class holds this many steps in a row.
@@ -58,28 +60,6 @@ class Event:
     description: str
     resolution: float = math.nan
     located: bool = False
-
-
-def _table_with_shapes(run, table):
-    if table is None:
-        table = run.table
-    if "shape" not in table.columns or table["shape"].isna().any():
-        from .classify import classify_run
-
-        missing = (list(table["step"]) if "shape" not in table.columns
-                   else list(table.loc[table["shape"].isna(), "step"]))
-        results = classify_run(run, steps=missing)
-        table = table.copy()
-        if "shape" not in table.columns:
-            table["shape"] = None
-            table["W"] = 0
-            table["corners"] = 0
-        for k, c in results.items():
-            row = table.index[table["step"] == k]
-            table.loc[row, "shape"] = c.shape
-            table.loc[row, "W"] = c.W
-            table.loc[row, "corners"] = c.corners
-    return table
 
 
 def _first_persistent(flags: np.ndarray, start: int, persistence: int) -> int | None:
@@ -120,7 +100,7 @@ def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
     from ..store.view import Run
 
     run = Run.of(run_or_path)
-    table = _table_with_shapes(run, table).reset_index(drop=True)
+    table = table_with_shapes(run, table).reset_index(drop=True)
     if table.empty:
         return []
     shape = table["shape"].astype(str).to_numpy()

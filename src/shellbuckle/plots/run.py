@@ -265,14 +265,14 @@ def plot_deflation(run, path=None, step: int = -1, *, units: str = "reduced"):
     from ..energies.bending import Bending
     from ..mesh.topology import Topology
 
-    from ..analysis.events import _table_with_shapes
+    from ..analysis.classify import table_with_shapes
     from ..store.located import read_located
 
     check_units(units, run.params)
     X = run.positions(step)
     faces = run.faces
     H = Bending.from_mesh(Topology.from_faces(faces, len(X))).mean_curvature(X)
-    table = _table_with_shapes(run, run.table)
+    table = table_with_shapes(run, run.table)
     table = table[table["step"] <= run.step(step)]
     located = {name: p for name, p in read_located(run.path).items()
                if p.get("step", 1 << 30) <= run.step(step)}
