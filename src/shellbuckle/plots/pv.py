@@ -82,10 +82,29 @@ def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
                                     mutation_scale=11, shrinkA=0, shrinkB=0))
 
 
+def _located(ax, run, p_unit: float, first: bool) -> None:
+    """The located events of ``run`` (:mod:`shellbuckle.locate`): the pressures at both ends
+    of each bracket, joined (the jump), named in the legend for the first run."""
+    from ..store.located import read_located
+    from .run import EVENT_MARKS
+
+    points = read_located(run.path)
+    for name, (marker, text) in EVENT_MARKS.items():
+        point = points.get(name)
+        if not point or not point.get("complete", True):
+            continue
+        x = float(point["dV_over_V"])
+        ax.plot([x, x], [float(point["old"]["pressure"]) / p_unit,
+                         float(point["new"]["pressure"]) / p_unit], "-", color="0.2", lw=1.0,
+                marker=marker, ms=5, mfc="white", mec="0.1", zorder=4,
+                label=f"{text}, located" if first else None, gid=f"located_{name}")
+
+
 def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced"):
     """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
     as p/p_c against dV/V (``units="si"``: p in Pa, for runs made from a material), each with
-    arrows in the direction of its path and labelled with its folder name and direction; the
+    arrows in the direction of its path and labelled with its folder name and direction, and
+    its located events (both ends of each bracket, joined); the
     first run's parameters set ``p_c`` and the title. The legend is placed off the data
     (:func:`~shellbuckle.plots.render.place_legend`). Saved to ``path`` (PNG, or PDF by the
     suffix) when given; returns the :class:`~matplotlib.figure.Figure`."""
@@ -102,7 +121,7 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
     fig = Figure(figsize=(5.0, 3.8), constrained_layout=True)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    xmax = 0.05
+    xmax, ymin, ymax = 0.05, 0.0, 0.0
     for i, run in enumerate(runs):
         table = run.table
         x = np.asarray(table["dV_over_V"], float)
@@ -113,15 +132,21 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
         ax.plot(x, y, "o-", ms=3, lw=1.0, color=color, gid=f"pv:{Path(run.path).name}",
                 label=f"{Path(run.path).name} ({_direction(x)})")
         _arrows(ax, x, y, color)
+        _located(ax, run, p_unit, first=i == 0)
         xmax = max(xmax, float(np.nanmax(x)))
+        ymin, ymax = min(ymin, float(np.nanmin(y))), max(ymax, float(np.nanmax(y)))
     xmax *= 1.05
+    p_c = theory.classical_threshold(params).pressure / p_unit
     if theory_curve:
         grid = np.linspace(0.0, min(xmax, 0.999), 300)
         ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_unit, "--", color="0.5",
                 lw=0.8, label="uniformly shrunk sphere", gid="pressure_sphere")
-    ax.axhline(theory.classical_threshold(params).pressure / p_unit, color="0.3", lw=0.6,
+    ax.axhline(p_c, color="0.3", lw=0.6,
                ls=":", gid="p_c")  # p_c: defined by the axis label (reduced) or the title
-    ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax), ylabel=label)
+    # the runs' pressures and p_c set the range; the shrunk sphere's curve leaves it upwards
+    span = max(ymax, 1.0 * p_c) - min(ymin, 0.0)
+    ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax), ylabel=label,
+           ylim=(min(ymin, 0.0) - 0.05 * span, max(ymax, 1.0 * p_c) + 0.25 * span))
     ax.yaxis.label.set_size(8)
     ax.set_title(rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
                  + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")
