@@ -268,3 +268,9 @@ def test_deflate_command_runs_the_smooth_imperfection(tmp_path, monkeypatch):
     d_over_R = ShellParameters.from_gamma(271.0).d_over_R
     assert protocol["smooth_jiggle"] == pytest.approx(0.03 * d_over_R, rel=1e-12)
     assert protocol["smooth_degree"] == 8 and protocol["temperature"] is None
+    # the catalogue of runs names the imperfection a run was made with
+    from shellbuckle.analysis.collect import collect_runs
+
+    row = collect_runs(tmp_path / "r").iloc[0]
+    assert row["smooth_jiggle"] == protocol["smooth_jiggle"] and row["smooth_degree"] == 8
+    assert row["temperature"] != row["temperature"]  # NaN: no per-vertex jiggle
