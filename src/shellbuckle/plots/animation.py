@@ -90,11 +90,22 @@ def animation_frame(run, step: int = -1, *, every: int | None = None, steps=None
     """The frame of ``step`` (default: the last) of the animation :func:`animate_run` writes
     with ``every`` or ``steps``, as a :class:`~matplotlib.figure.Figure` (Agg canvas,
     ``size`` inches wide): the same camera, scale and texts."""
+    from .paper import conformation
+
+    run, shown, analyzer, axis, radius, fig = _setting(run, every, steps, size)
+    _draw_frame(fig, conformation(run, run.step(step), analyzer), axis, radius, _title(run),
+                size)
+    return fig
+
+
+def _setting(run, every, steps, size: float):
+    """What every frame of an animation shares: the run opened, the steps shown, the shape
+    analyzer, the camera (axis, radius) and the figure (Agg canvas, ``size`` inches wide)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     from ..analysis import ShapeAnalyzer
-    from .paper import _open, conformation
+    from .paper import _open
 
     run = _open(run)
     shown = _shown(run, every, steps)
@@ -102,9 +113,7 @@ def animation_frame(run, step: int = -1, *, every: int | None = None, steps=None
     axis, radius = _camera(run, shown, analyzer)
     fig = Figure(figsize=(size, size + 0.5))
     FigureCanvasAgg(fig)
-    _draw_frame(fig, conformation(run, run.step(step), analyzer), axis, radius, _title(run),
-                size)
-    return fig
+    return run, shown, analyzer, axis, radius, fig
 
 
 def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None,
@@ -115,11 +124,8 @@ def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None
     square at ``dpi`` (:func:`animation_frame` draws one). ValueError for another suffix, an
     MP4 without ffmpeg or a run without steps."""
     from matplotlib.animation import FFMpegWriter, PillowWriter
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
-    from ..analysis import ShapeAnalyzer
-    from .paper import _open, conformation
+    from .paper import conformation
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -129,12 +135,7 @@ def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None
     if suffix == ".mp4" and not mp4_available():
         raise ValueError("MP4 needs the ffmpeg program, which is not on PATH; write a .gif "
                          "instead (no extra program needed)")
-    run = _open(run)
-    shown = _shown(run, every, steps)
-    analyzer = ShapeAnalyzer(run.faces, n_vertices=len(run.positions(shown[0])), contact=False)
-    axis, radius = _camera(run, shown, analyzer)
-    fig = Figure(figsize=(size, size + 0.5))
-    FigureCanvasAgg(fig)
+    run, shown, analyzer, axis, radius, fig = _setting(run, every, steps, size)
     writer = PillowWriter(fps=fps) if suffix == ".gif" else FFMpegWriter(fps=fps)
     title = _title(run)
     with writer.saving(fig, str(path), dpi):
