@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import theory
+from ..store.located import read_located
 from .render import place_legend
-from .run import check_units, p_c_label, pressure_unit
+from .run import check_units, mark_jumps, p_c_label, pressure_unit
 
 __all__ = ["family", "plot_pv"]
 
@@ -82,24 +83,6 @@ def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
                                     mutation_scale=11, shrinkA=0, shrinkB=0))
 
 
-def _located(ax, run, p_unit: float, first: bool) -> None:
-    """The located events of ``run`` (:mod:`shellbuckle.locate`): the pressures at both ends
-    of each bracket, joined (the jump), named in the legend for the first run."""
-    from ..store.located import read_located
-    from .run import EVENT_MARKS
-
-    points = read_located(run.path)
-    for name, (marker, text) in EVENT_MARKS.items():
-        point = points.get(name)
-        if not point or not point.get("complete", True):
-            continue
-        x = float(point["dV_over_V"])
-        ax.plot([x, x], [float(point["old"]["pressure"]) / p_unit,
-                         float(point["new"]["pressure"]) / p_unit], "-", color="0.2", lw=1.0,
-                marker=marker, ms=5, mfc="white", mec="0.1", zorder=4,
-                label=f"{text}, located" if first else None, gid=f"located_{name}")
-
-
 def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced"):
     """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
     as p/p_c against dV/V (``units="si"``: p in Pa, for runs made from a material), each with
@@ -132,7 +115,8 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
         ax.plot(x, y, "o-", ms=3, lw=1.0, color=color, gid=f"pv:{Path(run.path).name}",
                 label=f"{Path(run.path).name} ({_direction(x)})")
         _arrows(ax, x, y, color)
-        _located(ax, run, p_unit, first=i == 0)
+        mark_jumps(ax, read_located(run.path), lambda side: float(side["pressure"]) / p_unit,
+                   label=(lambda text, x: f"{text}, located") if i == 0 else None, ms=5)
         xmax = max(xmax, float(np.nanmax(x)))
         ymin, ymax = min(ymin, float(np.nanmin(y))), max(ymax, float(np.nanmax(y)))
     xmax *= 1.05
@@ -144,9 +128,9 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
     ax.axhline(p_c, color="0.3", lw=0.6,
                ls=":", gid="p_c")  # p_c: defined by the axis label (reduced) or the title
     # the runs' pressures and p_c set the range; the shrunk sphere's curve leaves it upwards
-    span = max(ymax, 1.0 * p_c) - min(ymin, 0.0)
+    span = max(ymax, p_c) - min(ymin, 0.0)
     ax.set(xlabel=r"$\Delta V/V$", xlim=(0.0, xmax), ylabel=label,
-           ylim=(min(ymin, 0.0) - 0.05 * span, max(ymax, 1.0 * p_c) + 0.25 * span))
+           ylim=(min(ymin, 0.0) - 0.05 * span, max(ymax, p_c) + 0.25 * span))
     ax.yaxis.label.set_size(8)
     ax.set_title(rf"$\gamma$ = {params.gamma:g}, $\nu$ = {params.nu:.3g}"
                  + params.convention_note.replace("gamma_eff", r"$\gamma_{eff}$")

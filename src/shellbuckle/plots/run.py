@@ -168,8 +168,8 @@ def _shape_strip(ax, table, xmax):
         ax.axvspan(x[i - 1], x[i], color=color, lw=0, label=label, gid=f"shape_{i}")
     last_x = -1.0
     for i in range(1, len(x)):
-        if shapes[i] == "wrinkled" and W[i] > 0 and (W[i] != W[i - 1] or shapes[i - 1] != "wrinkled") \
-                and x[i] - last_x > 0.06 * xmax:
+        new_count = W[i] != W[i - 1] or shapes[i - 1] != "wrinkled"
+        if shapes[i] == "wrinkled" and W[i] > 0 and new_count and x[i] - last_x > 0.06 * xmax:
             ax.text(0.5 * (x[i - 1] + x[i]), 0.5, f"W={int(W[i])}", ha="center", va="center",
                     fontsize=7, color="white", gid=f"W_{i}")
             last_x = x[i]
@@ -180,29 +180,40 @@ def _shape_strip(ax, table, xmax):
                   frameon=False, handlelength=1.2, columnspacing=1.0)
 
 
-def _mark_located(ax_e, ax_p, ax_strip, located: dict, params, units: str) -> None:
-    """Each located event (:mod:`shellbuckle.locate`) at its volume: the two ends of its
-    bracket (the last state of the old branch and the first of the new one) in the energy
-    and pressure panels, joined by a segment (the jump, if any), named in the pressure
-    panel's legend; a tick in the shape strip."""
-    e_scale, _ = energy_unit(params, units)
-    p_unit, _ = pressure_unit(params, units)
+def _complete_events(located: dict):
+    """``(name, marker, text, point)`` of every completely located event, in the order of
+    :data:`EVENT_MARKS`."""
     for name, (marker, text) in EVENT_MARKS.items():
         point = located.get(name)
-        if not point or not point.get("complete", True):
-            continue
+        if point and point.get("complete", True):
+            yield name, marker, text, point
+
+
+def mark_jumps(ax, located: dict, value, *, label=None, ms: float = 6) -> None:
+    """Each located event (:mod:`shellbuckle.locate`) at its volume: the two ends of its
+    bracket (the last state of the old branch and the first of the new one) at the heights
+    ``value(side)`` (``side``: the point's ``"old"`` or ``"new"`` values), joined by a segment
+    (the jump, if any); ``label(text, dV_over_V)`` gives the legend entry (None: none)."""
+    for name, marker, text, point in _complete_events(located):
         x = float(point["dV_over_V"])
-        old, new = point["old"], point["new"]
-        for ax, values in ((ax_e, [float(old["E_over_kappa"]) * e_scale,
-                                   float(new["E_over_kappa"]) * e_scale]),
-                           (ax_p, [float(old["pressure"]) / p_unit,
-                                   float(new["pressure"]) / p_unit])):
-            ax.plot([x, x], values, "-", color="0.2", lw=1.0, marker=marker, ms=6, mfc="white",
-                    mec="0.1", label=f"{text}, located at {x:.4f}" if ax is ax_p else None,
-                    gid=f"located_{name}", zorder=4)
-        if ax_strip is not None:
-            ax_strip.plot([x], [0.9], marker=marker, ms=5, color="0.1", mfc="white",
-                          gid=f"located_{name}_strip", zorder=4)
+        ax.plot([x, x], [value(point["old"]), value(point["new"])], "-", color="0.2", lw=1.0,
+                marker=marker, ms=ms, mfc="white", mec="0.1",
+                label=None if label is None else label(text, x), gid=f"located_{name}",
+                zorder=4)
+
+
+def _mark_located(ax_e, ax_p, ax_strip, located: dict, params, units: str) -> None:
+    """The located events in the energy and pressure panels (:func:`mark_jumps`), named in
+    the pressure panel's legend, and a tick in the shape strip."""
+    e_scale, _ = energy_unit(params, units)
+    p_unit, _ = pressure_unit(params, units)
+    mark_jumps(ax_e, located, lambda side: float(side["E_over_kappa"]) * e_scale)
+    mark_jumps(ax_p, located, lambda side: float(side["pressure"]) / p_unit,
+               label=lambda text, x: f"{text}, located at {x:.4f}")
+    if ax_strip is not None:
+        for name, marker, _, point in _complete_events(located):
+            ax_strip.plot([float(point["dV_over_V"])], [0.9], marker=marker, ms=5, color="0.1",
+                          mfc="white", gid=f"located_{name}_strip", zorder=4)
 
 
 def plot_run(table, params, X, faces, curvature=None, *, path=None, title=None, axis=None,
@@ -262,10 +273,9 @@ def plot_deflation(run, path=None, step: int = -1, *, units: str = "reduced"):
     from out of its dent (:func:`view_axis`), in ``units`` (``"reduced"`` or ``"si"``; checked
     before any work), the strip of shapes (the stored analysis, or the steps classified
     without writing) and the located events stored with the run."""
+    from ..analysis.classify import table_with_shapes
     from ..energies.bending import Bending
     from ..mesh.topology import Topology
-
-    from ..analysis.classify import table_with_shapes
     from ..store.located import read_located
 
     check_units(units, run.params)
