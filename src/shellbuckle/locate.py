@@ -107,7 +107,7 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     """Locate the threshold events ``names`` of a stored deflation run and store them.
 
     Returns ``{name: point}`` for every event of ``names`` that the run shows (module
-    docstring; the keys of a point are those of :func:`_point`). An event already located in
+    docstring; the keys of a point are those :func:`_locate_event` returns). An event already located in
     the folder at the same step, analysis version and a tolerance at least as fine is kept
     unless ``again``. ``threads`` as in :func:`shellbuckle.run.deflate`; the run's PARDISO mode
     is used, so the location is reproducible. A run that cannot be located
@@ -123,7 +123,7 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     missing = [k for k in run.steps if not is_current(analysis.get(k))]
     if missing:  # the classes of the steps, stored: the events, the figure and the table use them
         analyze_run(run, steps=missing)
-    found = {e.name: e for e in run_events(Run.of(run.path), located=False) if e.name in names}
+    found = {e.name: e for e in run_events(run, located=False) if e.name in names}
     stored = {} if again else read_located(run.path)
     out, todo = {}, []
     for name, event in found.items():
@@ -161,12 +161,14 @@ def _context(run: Run, threads):
     return ctx
 
 
-def _side(ctx, X, record: dict, shape: str) -> dict:
+def _side(ctx, X, record: dict, shape: str, lowest: float | None = None) -> dict:
+    """One end of a bracket: its record's values, its class and the lowest eigenvalue at
+    ``X`` (``lowest`` when already known)."""
     keys = ("dV_over_V", "E_total", "E_bend", "E_stretch", "E_over_kappa", "pressure",
             "grad_norm", "converged", "inertia")
     side = {key: record.get(key) for key in keys}
     side["shape"] = shape
-    side["lowest_eigenvalue"] = _lowest(ctx, X)
+    side["lowest_eigenvalue"] = _lowest(ctx, X) if lowest is None else lowest
     return side
 
 
@@ -185,12 +187,12 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     wanted = EVENT_SHAPES[event.name]
     X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
     X_hi, rec_hi = run.positions(k), run.store.record(k)
-    rec_hi_step = rec_hi["dV_over_V"]
     # the volumes reached (a branch's step 0 is its parent's step, not the sphere)
     lo, hi = float(rec_lo["dV_over_V"]), float(rec_hi["dV_over_V"])
-    shape_lo, shape_hi = classify(X_lo, run.faces).shape, classify(X_hi, run.faces).shape
+    lo_start, hi_start = lo, hi
+    analysis = run.store.analysis()  # current for every step: locate() made sure of it
+    shape_lo, shape_hi = str(analysis[k - 1]["shape"]), str(analysis[k]["shape"])
     lowest_start = _lowest(ctx, X_lo)
-    lo_start = lo
     # the old branch one stored step earlier, for the eigenvalue's trend if lo does not move
     before = float(run.store.record(k - 2)["dV_over_V"]) if k >= 2 else math.nan
     lowest_before = _lowest(ctx, run.positions(k - 2)) if k >= 2 else math.nan
@@ -221,7 +223,7 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
             hi, X_hi, rec_hi, shape_hi = mid, state.X, record, shape
         else:
             lo, X_lo, rec_lo, shape_lo = mid, state.X, record, shape
-    old = _side(ctx, X_lo, rec_lo, shape_lo)
+    old = _side(ctx, X_lo, rec_lo, shape_lo, lowest=lowest_start if lo == lo_start else None)
     new = _side(ctx, X_hi, rec_hi, shape_hi)
     if lo > lo_start:
         trend = (lo_start, lowest_start, lo, old["lowest_eigenvalue"])
@@ -229,7 +231,7 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         trend = (before, lowest_before, lo, lowest_start)
     jump = _jump(old, new, ctx.V0 * (hi - lo))
     if jump:
-        mechanism, zero_at = _mechanism(*trend, float(rec_hi_step) - lo_start)
+        mechanism, zero_at = _mechanism(*trend, hi_start - lo_start)
     else:
         mechanism, zero_at = "continuous", None
     return {

@@ -61,15 +61,12 @@ def _cmd(args) -> int:
 
     runs = []
     for name in args.dir:
-        if not Path(name).is_dir():
-            run_folder("DIR", name)  # says what is wrong with it
         try:
-            folders = run_folders(name)
+            folders = run_folders(name) if Path(name).is_dir() else []
         except ValueError:
             folders = []
-        if not folders:
-            run_folder("DIR", name)
-        runs += [run_folder("DIR", folder) for folder in folders]
+        # no run in it: run_folder says what is wrong with the folder itself
+        runs += [run_folder("DIR", folder) for folder in folders or [name]]
     if len(runs) == 1:
         why = locatable(runs[0])
         if why is not None:
