@@ -123,7 +123,7 @@ def plot_thresholds(df, fits=None, *, reference=None, path=None):
                      else pd.to_numeric(width, errors="coerce").to_numpy(float))
             located = np.isfinite(width) & (width < 0.5 * np.nanmedian(runs["dv"].to_numpy(float)))
             how = ("located" if located[ok].all() else "read at the steps" if not located[ok].any()
-                   else "located where marked with a bar")
+                   else "some located; bars: the interval each lies in")
             bars = ax.errorbar(gammas[ok], y[ok],
                                yerr=np.where(np.isfinite(width[ok]), width[ok] / 2, 0),
                                fmt=marker, ms=6, color=color, capsize=2, elinewidth=0.8,
