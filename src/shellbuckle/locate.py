@@ -54,6 +54,7 @@ from .params import ShellParameters
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import LeftDomain, Protocol
 from .solve.spectrum import lowest_eigenvalues
+from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL, read_located, write_located
 from .store.view import Run
 
@@ -150,7 +151,7 @@ def located(run_or_path) -> dict[str, dict]:
 
 def _context(run: Run, threads):
     store = run.store
-    mode = store.meta.get("extra", {}).get("pardiso_mode", "reproducible")
+    mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
     if mode == "plain":
         threads = 1
     mesh = Mesh.from_arrays(store.X0, store.faces)

@@ -29,6 +29,7 @@ from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .solve.linear import check_mode, check_threads, default_threads
+from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL
 from .store.run import RunStore
 from .store.view import Run
@@ -307,11 +308,6 @@ def _side(run, step: int) -> dict:
     out |= {name: shape.get(name) for name in ("shape", "n_dimples", "corners", "W",
                                                "dent_depth", "asphericity")}
     return out
-
-
-SOLVER_MODE = "pardiso_mode"
-"""Key of PARDISO's mode in a run's ``meta["extra"]``: ``"plain"`` or ``"reproducible"``
-(:mod:`shellbuckle.solve.linear`); a run stored without it was made in the reproducible mode."""
 
 
 def solver_mode(threads: int | None) -> str:

@@ -25,6 +25,9 @@ ANALYSIS_COLUMNS = ("shape", "n_dimples", "corners", "W")
 STATUSES = ("running", "paused", "finished", "failed", "interrupted")
 
 RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
+#: Key of PARDISO's mode in a run's ``meta["extra"]``: ``"plain"`` or ``"reproducible"``
+#: (:mod:`shellbuckle.solve.linear`); a run stored without it was made in the reproducible mode.
+SOLVER_MODE = "pardiso_mode"
 TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
 WRITER_LOCK, ANALYSIS_LOCK = ".lock", ".analysis.lock"
 _WRITER_FILES = {RUN_JSON, MESH_H5, TABLE_CSV}

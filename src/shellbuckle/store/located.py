@@ -64,17 +64,3 @@ def write_located(folder, events: Mapping[str, Mapping]) -> None:
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
     finally:
         lock.release()
-
-
-def remove_located(folder, names=None) -> None:
-    """Forget the located points ``names`` (all when None) of the run in ``folder``."""
-    folder = Path(folder)
-    lock = FileLock(folder / LOCATED_LOCK)
-    lock.acquire(blocking=True)
-    try:
-        kept = {} if names is None else {n: p for n, p in read_located(folder).items()
-                                         if n not in set(names)}
-        text = json.dumps({"version": LOCATED_VERSION, "events": kept}, indent=1)
-        atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
-    finally:
-        lock.release()
