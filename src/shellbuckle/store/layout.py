@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 import h5py
+import numpy as np
 
 FORMAT_NAME = "shellbuckle-run"
 FORMAT_VERSION = 1
@@ -93,6 +94,23 @@ def _span(steps) -> str:
     if steps and steps == list(range(steps[0], steps[-1] + 1)):
         return f"{steps[0]}..{steps[-1]}"
     return _ranges(steps)
+
+
+COMPRESS_MIN_SIZE = 4096
+"""Arrays of at least this many elements are stored compressed (gzip level 4 after a byte
+shuffle, one chunk per array: every step is its own file, so a chunk is a step's array);
+smaller ones are stored plain, where compression would only add its headers."""
+
+
+def write_array(group, name: str, arr) -> None:
+    """Store ``arr`` as the dataset ``name`` of the HDF5 ``group``, compressed when large
+    (:data:`COMPRESS_MIN_SIZE`); the values read back are the same bits either way."""
+    arr = np.asarray(arr)
+    if arr.size >= COMPRESS_MIN_SIZE and arr.dtype.kind in "fiub":
+        group.create_dataset(name, data=arr, chunks=arr.shape, compression="gzip",
+                             compression_opts=4, shuffle=True)
+    else:
+        group.create_dataset(name, data=arr)
 
 
 def _h5_bytes(write) -> bytes:

@@ -107,7 +107,7 @@ from .layout import (_INTEGER_COLUMNS, _WRITER_FILES, ANALYSIS_COLUMNS,  # noqa:
                      FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS, REQUIRED_MESH_FIELDS, RUN_JSON,
                      STATUSES, STEPS_DIR, TABLE_COLUMNS, TABLE_CSV, WRITER_LOCK, _h5_bytes,
                      _has_step_files, _ranges, _read_h5, _read_mesh_arrays, _span, _step_indices,
-                     check_format, step_file)
+                     check_format, step_file, write_array)
 from .meta import (_differences, _identity, _json_dict, _jsonable, _scalar_dict,  # noqa: F401
                    _session, _short, _versions, source_commit)
 from .repair import (_check_fields, _how_to_replace_run_json, _read_meta,  # noqa: F401
@@ -721,12 +721,12 @@ class RunStore:
         description = json.dumps(self._meta, indent=1, allow_nan=True)
 
         def write(f):
-            f.create_dataset("X0", data=X0)
-            f.create_dataset("faces", data=faces)
+            write_array(f, "X0", X0)
+            write_array(f, "faces", faces)
             if rest:
                 group = f.create_group("rest")
                 for name, arr in rest.items():
-                    group.create_dataset(name, data=arr)
+                    write_array(group, name, arr)
             f.attrs[DESCRIPTION_ATTR] = description  # run.json as created, to rebuild it
         atomic_write_bytes(self._path / MESH_H5, _h5_bytes(write))
         self._mesh_cache = (X0.copy(), faces.copy(), {k: v.copy() for k, v in rest.items()})

@@ -21,7 +21,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .layout import CHECKSUM_ATTR, _h5_bytes, _ranges
+from .layout import CHECKSUM_ATTR, _h5_bytes, _ranges, write_array
 
 #: The run store's logger: its messages keep the name they are shown with
 #: (``shellbuckle.store.run``), whichever module of the store writes them.
@@ -187,7 +187,7 @@ def step_file_bytes(X: np.ndarray, record: dict, record_json: str,
     ``arrays/`` and the checksums of all of it (:func:`step_checksums`)."""
 
     def write(f):
-        f.create_dataset("X", data=X)
+        write_array(f, "X", X)
         for key, value in record.items():
             if value is not None:
                 f.attrs[key] = _attribute_value(value)
@@ -195,7 +195,7 @@ def step_file_bytes(X: np.ndarray, record: dict, record_json: str,
         if arrays:
             group = f.create_group("arrays")
             for name, arr in arrays.items():
-                group.create_dataset(name, data=arr)
+                write_array(group, name, arr)
         f.attrs[CHECKSUM_ATTR] = json.dumps(step_checksums(X, record_json, arrays))
 
     return _h5_bytes(write)
