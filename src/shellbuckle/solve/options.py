@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_INTEGERS = ("max_iter", "inverse_iterations", "max_quasi", "memory", "seed", "jam_steps",
+_INTEGERS = ("max_iter", "inverse_iterations", "refine_iterations", "max_quasi", "memory", "seed", "jam_steps",
              "single_jam_steps", "relax_rough_full", "relax_window", "relax_memory",
              "relax_ask_steps")
 _FLAGS = ("project_rigid", "escape_saddles", "compute_inertia", "certify", "certify_single",
@@ -48,7 +48,10 @@ class NewtonOptions:
         ``certify_single``: try the certificate first in single precision with the tangent
         Hessian shifted down by ``certify_shift mean|diag K|``; ``single_jam_steps``: Newton
         steps without progress after which the rest of a minimization factors in double
-        precision.
+        precision; ``refine_iterations``, ``refine_rtol``: the Newton step of a
+        single-precision factorization is refined by at most that many GMRES iterations to
+        that relative residual of the double-precision KKT system (0: not refined;
+        :mod:`.krylov`).
     Steps
         ``max_step``: largest vertex displacement of one step (``None``: ``0.2 R_eq``, the
         radius of the sphere of the target volume); ``inverse_iterations``: steps of the
@@ -88,6 +91,8 @@ class NewtonOptions:
     certify_single: bool = True
     certify_shift: float = 1e-6
     single_jam_steps: int = 3
+    refine_iterations: int = 20
+    refine_rtol: float = 1e-8
     max_step: float | None = None
     inverse_iterations: int = 12
     seed: int = 0

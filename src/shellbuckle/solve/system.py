@@ -17,6 +17,10 @@ last assembled point (kept as its terms, :mod:`.kkt`) and the factorization in u
 - a direction of most negative curvature by inverse iteration with a shifted, positive
   definite factorization (Golub & Van Loan, *Matrix Computations*, 4th ed., §8.2.2;
   :meth:`KKTSystem.negative_curvature`);
+- Newton steps from a single-precision factorization refined by GMRES in double precision
+  (:mod:`.krylov`, ``refine_iterations``), so that on large meshes, where the single-precision
+  solve loses most of its digits along the soft modes, they stay Newton steps
+  (:meth:`KKTSystem.step`);
 - a single-precision certificate: inertia 0 of a single-precision factorization of the KKT
   matrix with ``K`` shifted down by ``sigma``, whose computed factors are those of
   ``K - sigma I + E`` with a backward error ``|E|`` of the order of the single-precision
@@ -36,6 +40,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from .gauge import fixes_gauge, free_dofs, pinned_dofs, remove_rigid
+from .krylov import gmres, symmetric_matvec
 from .linesearch import max_displacement, projected_gradient
 from .workspace import weak
 
@@ -183,9 +188,22 @@ class KKTSystem:
         self.token.certificate = bool(ok and inertia == 0)
         return self.token.certificate
 
-    def solve(self, rhs_f, rhs_c=0.0) -> np.ndarray:
-        with self.clock("solve"):
-            y = self.linsolver.solve(np.concatenate([rhs_f, [rhs_c]]))
+    def solve(self, rhs_f, rhs_c=0.0, refine: bool = False) -> np.ndarray:
+        """The KKT solve with the current factorization for the right-hand side ``(rhs_f,
+        rhs_c)`` (free dofs, constraint), as positions ``(V, 3)`` (zero on the pinned dofs).
+        ``refine``: where the factorization is single precision, GMRES with it as
+        preconditioner and the matrix of that factorization (its shift included) in double
+        precision, to ``refine_rtol`` within ``refine_iterations`` iterations (:mod:`.krylov`)."""
+        b = np.concatenate([rhs_f, [rhs_c]])
+        token, o = self.token, self.options
+        if refine and token is not None and token.approximate and o.refine_iterations:
+            with self.clock("refine"):
+                matvec = symmetric_matvec(self.kkt.matrix(self._data, token.mu))
+                y = gmres(matvec, self.linsolver.solve, b, o.refine_rtol,
+                          o.refine_iterations).x
+        else:
+            with self.clock("solve"):
+                y = self.linsolver.solve(b)
         out = np.zeros(self.n_dofs)
         out[self.free] = y[:-1]
         return out.reshape(-1, 3)
@@ -198,8 +216,9 @@ class KKTSystem:
     def step(self, X, r, verr):
         """Newton step ``s`` from the current factorization (rigid part removed), its slope
         ``r.s`` and the curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it;
-        ``-r / mean|diag K|`` where the solve gives no descent (round-off at convergence)."""
-        s = self.without_rigid(X, self.solve(-r.ravel()[self.free], -verr))
+        ``-r / mean|diag K|`` where the solve gives no descent (round-off at convergence). A
+        single-precision factorization's solve is refined in double precision (:meth:`solve`)."""
+        s = self.without_rigid(X, self.solve(-r.ravel()[self.free], -verr, refine=True))
         slope = float(np.einsum("ij,ij->", r, s))
         if not slope < 0:
             s = -r / self.diag_scale
