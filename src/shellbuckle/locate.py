@@ -53,8 +53,8 @@ from .mesh.mesh import Mesh
 from .params import ShellParameters
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import LeftDomain, Protocol
+from .protocol.stored import init_stored
 from .solve.spectrum import lowest_eigenvalues
-from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL, read_located, write_located
 from .store.view import Run
 
@@ -151,14 +151,9 @@ def located(run_or_path) -> dict[str, dict]:
 
 def _context(run: Run, threads):
     store = run.store
-    mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
-    if mode == "plain":
-        threads = 1
     mesh = Mesh.from_arrays(store.X0, store.faces)
-    params = ShellParameters.from_dict(store.params)
-    protocol = Protocol.from_dict(store.protocol)
-    ctx, _ = protocol_mod.init(mesh, params, protocol, form_factors=store.rest.get("form_factors"),
-                               threads=threads, reproducible=mode == "reproducible")
+    ctx, _ = init_stored(store, mesh, ShellParameters.from_dict(store.params),
+                         Protocol.from_dict(store.protocol), threads)
     return ctx
 
 

@@ -28,6 +28,7 @@ from .params import DEFAULT_CONVENTION, ShellParameters, bending_factor
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
+from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
 from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL
@@ -450,18 +451,7 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
                  max_steps: int | None, threads: int | None, checkpoint) -> None:
     """The run loop; ``checkpoint()`` is called before each step and before the final status
     (:meth:`_Interrupts.check`)."""
-    mode = store.meta.get("extra", {}).get(SOLVER_MODE, "reproducible")
-    if mode not in ("plain", "reproducible"):
-        raise ValueError(f"{store.path} stores PARDISO mode {mode!r}; expected 'plain' or "
-                         f"'reproducible'")
-    if mode == "plain" and threads is not None and threads > 1:
-        log.info("run %s was made in PARDISO's plain mode on one thread: it goes on on one "
-                 "thread (%d asked) to give the same bits", store.path, threads)
-    if mode == "plain":
-        threads = 1
-    ctx, state = protocol_mod.init(mesh, params, protocol,
-                                   form_factors=store.rest.get("form_factors"), threads=threads,
-                                   reproducible=mode == "reproducible")
+    ctx, state = init_stored(store, mesh, params, protocol, threads)
     last = store.last_step
     if last is None:
         why = protocol_mod.domain_exit(ctx, state.X)
