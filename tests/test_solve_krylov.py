@@ -108,3 +108,23 @@ def test_a_refined_single_precision_kkt_solve_is_the_double_precision_one():
     # a double-precision factorization is not refined: the same bits with or without
     assert system.factor(0.0)[0]
     assert np.array_equal(system.solve(rhs, 0.25, refine=True), system.solve(rhs, 0.25))
+
+
+@pytest.mark.skipif(_load_mkl() is None, reason="single precision needs PARDISO (Intel MKL)")
+def test_refined_and_plain_single_precision_steps_reach_the_same_minimum():
+    # an exact equivalence of two paths: the refinement changes the steps, not the minimum
+    from shellbuckle.solve import newton
+
+    mesh = icosphere(8)
+    energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(1e4, nu=1.0 / 3.0))
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    V = 0.97 * volume.value(mesh.X)
+    shrunk = 0.97 ** (1.0 / 3.0) * mesh.X
+    X0 = shrunk + 0.01 * np.random.default_rng(7).standard_normal(mesh.X.shape)
+    plain, refined = (newton(energy, volume, X0, V, solver="pardiso", precondition_at=shrunk,
+                             refine_iterations=k) for k in (0, 20))
+    assert plain.success and refined.success and plain.inertia == refined.inertia == 0
+    assert refined.fun == pytest.approx(plain.fun, rel=1e-10)
+    assert refined.pressure == pytest.approx(plain.pressure, rel=1e-7)
+    assert np.abs(refined.x - plain.x).max() < 1e-6
+    assert refined.timings.get("refine", 0.0) > 0.0 and "refine" not in plain.timings
