@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 
 
@@ -85,14 +86,7 @@ def gmres(matvec, precondition, b: np.ndarray, rtol: float, max_iter: int) -> Re
     diagonal = np.diag(H[:k, :k])
     keep = k if np.all(diagonal != 0.0) else int(np.argmax(diagonal == 0.0))
     if keep:
-        y = _back_substitute(H[:keep, :keep], g[:keep])
+        y = scipy.linalg.solve_triangular(H[:keep, :keep], g[:keep])
         x = x + y @ Z[:keep]
     return Refined(x, float(np.linalg.norm(b - matvec(x))) / b_norm, k)
 
-
-def _back_substitute(R: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """``R^-1 g`` for the upper-triangular ``R``."""
-    y = np.zeros(len(g))
-    for i in range(len(g) - 1, -1, -1):
-        y[i] = (g[i] - R[i, i + 1:] @ y[i + 1:]) / R[i, i]
-    return y

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_INTEGERS = ("max_iter", "inverse_iterations", "refine_iterations", "max_quasi", "memory", "seed", "jam_steps",
-             "single_jam_steps", "relax_rough_full", "relax_window", "relax_memory",
+_INTEGERS = ("max_iter", "inverse_iterations", "refine_iterations", "max_quasi", "memory", "seed",
+             "jam_steps", "single_jam_steps", "relax_rough_full", "relax_window", "relax_memory",
              "relax_ask_steps")
 _FLAGS = ("project_rigid", "escape_saddles", "compute_inertia", "certify", "certify_single",
           "single_precision_steps", "history", "relax_scaling")
