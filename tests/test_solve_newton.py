@@ -420,3 +420,31 @@ def test_keywords_are_the_options_of_the_same_name():
     for other in (b, c):
         assert np.array_equal(a.x, other.x) and a.nit == other.nit and a.fun == other.fun
         assert [h["step"] for h in a.history] == [h["step"] for h in other.history]
+
+
+def test_a_gradient_test_below_the_round_off_floor_ends_on_the_step_test():
+    # tol_grad = atol_grad = 0 asks for a gradient the coordinates cannot resolve (the floor
+    # of 160k-vertex meshes at the protocol's tolerance). Oracles: the minimum of the plain
+    # gradient test (energy, positions to the coordinates' precision), the exact Newton step
+    # at the end (below tol_step of |X|), and the same run without the step test, which stalls
+    mesh, energy, volume, V0 = shell(4, 2333)
+    V = 0.97 * V0
+    X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    plain = newton(energy, volume, X0, V, tol_grad=1e-12)
+    floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, max_iter=40)
+    assert plain.success and floor.success and floor.message == "converged"
+    assert floor.inertia == 0 and floor.certificate == "double"
+    assert floor.fun == pytest.approx(plain.fun, rel=1e-13)
+    assert np.abs(floor.x - plain.x).max() <= 1e-12
+    assert floor.grad_norm > 0.0
+    # the Newton step at the end, from a dense solve of the KKT system (rigid modes fixed)
+    gE, gV = energy.gradient(floor.x), volume.gradient(floor.x)
+    lam, r = projected_gradient(gE, gV)
+    K = (energy.hessian(floor.x) - lam * volume.hessian(floor.x)).toarray()
+    C = np.column_stack([gV.ravel(), rigid_modes(floor.x)])
+    Z = scipy.linalg.null_space(C.T)
+    s = Z @ np.linalg.solve(Z.T @ K @ Z, -Z.T @ r.ravel())
+    assert np.sqrt((s.reshape(-1, 3) ** 2).sum(1).max()) <= 1e-15 * np.abs(floor.x).max() * 4
+    stalled = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_step=0.0,
+                     max_iter=40)
+    assert not stalled.success

@@ -90,6 +90,17 @@ has no negative eigenvalue. That inertia is the last unshifted factorization's w
 has moved since by at most ``inertia_step`` mean edge lengths, else the matrix is factored at
 the point. The volume constraint then holds to round-off (``~1e-15`` relative).
 
+The gradient test has a floor: the coordinates are known to one unit in the last place, and
+a displacement that small changes the gradient by about that unit times the stiffest
+eigenvalue of ``K`` (bending at the mesh scale, ``~ kappa / h^2``), summed over all dofs.
+That floor grows like ``N^1.5`` while ``|grad E|`` falls like ``N^-1/2``: on 160k vertices it
+lies above ``tol_grad |grad E|`` for the protocol's ``tol_grad = 1e-9``. Hence the step test
+(Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization*, SIAM 1996, §7.2): a
+point whose exact Newton step (unshifted, double precision) moves no vertex by more than
+``tol_step`` times the largest vertex distance from the origin, after a step that changed
+the energy by at most ``tol_energy |E|``, is the minimum to the precision of its coordinates
+and the minimization ends there, converged (its inertia is that factorization's).
+
 Uncertified minima
 ------------------
 With ``certify=False`` the minimization stops on the gradient and energy tests alone (inertia
@@ -404,6 +415,8 @@ def _newton_step(m: Minimization, st: NewtonState) -> Step | None:
         st.message = f"maximum number of Newton iterations ({o.max_iter}) reached"
         return None
     s, slope_s, curv_s = system.step(st.X, st.r, m.volume.value(st.X) - m.V_target)
+    if _at_resolution(m, st, s, indefinite):
+        return None
     d, curv_d = _negative_curvature(m, st, indefinite)
     if st.message is not None:
         return None
@@ -457,6 +470,34 @@ def _factor(m: Minimization, st: NewtonState) -> bool | None:
     st.pairs.clear()
     st.r_history = [(st.r_norm, st.E)]
     return indefinite
+
+
+def _at_resolution(m: Minimization, st: NewtonState, s: np.ndarray, indefinite: bool) -> bool:
+    """The step test of "Convergence": whether the Newton step ``s`` of a point that fails the
+    gradient test moves no vertex by more than ``tol_step`` times the largest vertex distance
+    from the origin (the point is then the minimum to the precision of its coordinates, and
+    the minimization ends there, converged). It counts for an unshifted double-precision
+    factorization showing no negative eigenvalue (with ``escape_saddles``) after a step that
+    changed the energy by at most ``tol_energy`` relative; such a step of a single-precision
+    factorization makes the following factorizations double precision."""
+    o = m.options
+    if st.grad_ok or not o.tol_step or st.mu != 0.0:
+        return False
+    if max_displacement(s) > o.tol_step * float(np.sqrt(np.einsum("ij,ij->i", st.X, st.X).max())):
+        return False
+    if m.system.token.approximate:
+        st.single_ok = False
+        return False
+    if o.escape_saddles and indefinite:
+        return False
+    if st.dE is not None and abs(st.dE) > o.tol_energy * abs(st.E):
+        return False
+    log.debug("newton: the Newton step (%.3e) is below the resolution of the coordinates at "
+              "|r| = %.3e", max_displacement(s), st.r_norm)
+    st.converged = True
+    st.success, st.message = True, "converged"
+    st.certificate = st.fact.precision if st.inertia == 0 else None
+    return True
 
 
 def _negative_curvature(m: Minimization, st: NewtonState, indefinite: bool):

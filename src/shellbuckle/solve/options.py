@@ -30,6 +30,9 @@ class NewtonOptions:
     Convergence (:mod:`.newton`, "Convergence")
         ``tol_grad``, ``atol_grad``: stop when ``|r| <= tol_grad |grad E| + atol_grad``;
         ``tol_energy``: and the last step changed the energy by at most ``tol_energy |E|``;
+        ``tol_step``: or the unshifted double-precision Newton step moves no vertex by more
+        than ``tol_step`` times the largest vertex distance from the origin (the gradient's
+        round-off floor, :mod:`.newton` "Convergence"; 0: no step test);
         ``max_iter``: Newton steps (factorizations of ``K``) at most, the quasi-Newton and
         relaxation steps not counted (the relaxation takes at most ``max_iter // 2``).
     What is shown at the end
@@ -80,6 +83,7 @@ class NewtonOptions:
     tol_grad: float = 1e-8
     atol_grad: float = 1e-10
     tol_energy: float = 1e-10
+    tol_step: float = 1e-15
     max_iter: int = 100
     project_rigid: bool = True
     escape_saddles: bool = True
