@@ -274,3 +274,46 @@ def test_deflate_command_runs_the_smooth_imperfection(tmp_path, monkeypatch):
     row = collect_runs(tmp_path / "r").iloc[0]
     assert row["smooth_jiggle"] == protocol["smooth_jiggle"] and row["smooth_degree"] == 8
     assert row["temperature"] != row["temperature"]  # NaN: no per-vertex jiggle
+
+
+def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
+    # oracle: the same minimization from the same smooth start with the relaxation's rough
+    # stage (the solver's default, made for per-vertex noise) ends at the same minimum, with
+    # at least one factorization more
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.protocol import deflate as P
+    from shellbuckle.solve import minimize
+    from shellbuckle.solve.gauge import remove_rigid
+    from shellbuckle.solve.relax import move
+    from shellbuckle.solve.system import KKTSystem
+
+    factored = []
+    original = KKTSystem.factor
+
+    def counting(self, mu, approximate=False):
+        factored.append(mu)
+        return original(self, mu, approximate)
+
+    monkeypatch.setattr(KKTSystem, "factor", counting)
+    params = ShellParameters.from_gamma(2333, nu=1 / 3)
+    protocol = Protocol.paper(until=0.1, seed=0, smooth_jiggle=0.03, smooth_degree=12)
+    ctx, state = P.init(icosphere(16), params, protocol, threads=1)
+    X = P._jiggled(ctx, state.X, protocol.smooth_jiggle, step_rng(0, 1))
+    V = ctx.V0 * (1.0 - protocol.schedule[0])
+    assert 0.3 < move(ctx.volume, X, state.X) < 1.5  # a start the rough stage would take
+    counts, results = [], []
+    for rough in (None, 1.0):
+        factored.clear()
+        if rough is None:
+            res = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X)
+        else:
+            res = minimize(ctx.energy, ctx.volume, X, V, tol=protocol.tol, workspace=ctx.workspace,
+                           pinned=ctx.pinned, precondition_at=state.X, relax_rough_shift=rough)
+        counts.append(len(factored))
+        results.append(res)
+    smooth, rough = results
+    assert smooth.success and rough.success and smooth.inertia == rough.inertia == 0
+    assert smooth.fun == pytest.approx(rough.fun, rel=1e-10)
+    # the same shape (the two paths may end moved rigidly against each other)
+    assert np.abs(remove_rigid(rough.x, smooth.x - rough.x)).max() <= 1e-8
+    assert counts[0] < counts[1]

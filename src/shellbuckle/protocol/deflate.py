@@ -465,6 +465,10 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
             options["precondition_token"] = relaxed_token
+            if p.smooth_jiggle is not None:
+                # a smooth imperfection has no mesh-scale roughness for the relaxation's
+                # rough stage to damp (:mod:`shellbuckle.solve.relax`): skipped
+                options["relax_rough_shift"] = 0.0
         tokens = [w.factorization for w in warm or () if w.factorization is not None]
         if p.prerelax and tokens:
             options["warm_start"] = tokens
