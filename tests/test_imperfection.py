@@ -1,5 +1,6 @@
 """The smooth imperfection: one field on the sphere whatever the mesh, with the requested
-spectrum and amplitude, reproducible by seed, and resumable in a run."""
+spectrum and amplitude, reproducible by seed, resumable in a run, and relaxed without the
+rough stage made for per-vertex noise."""
 
 import json
 
@@ -8,8 +9,10 @@ import pytest
 import scipy.special
 from scipy.spatial import cKDTree
 
+from shellbuckle.mesh import icosphere
 from shellbuckle.mesh.random_sphere import random_sphere
 from shellbuckle.params import ShellParameters
+from shellbuckle.protocol import deflate as P
 from shellbuckle.protocol.deflate import Protocol
 from shellbuckle.protocol.imperfection import (evaluate, harmonic_index, n_harmonics,
                                                power_per_degree, random_coefficients,
@@ -17,6 +20,10 @@ from shellbuckle.protocol.imperfection import (evaluate, harmonic_index, n_harmo
                                                smooth_displacement, smooth_jiggle,
                                                vertex_normals)
 from shellbuckle.protocol.jiggle import jiggle, step_rng
+from shellbuckle.solve import minimize
+from shellbuckle.solve.gauge import remove_rigid
+from shellbuckle.solve.relax import move
+from shellbuckle.solve.system import KKTSystem
 
 
 @pytest.fixture(scope="module")
@@ -280,13 +287,6 @@ def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
     # oracle: the same minimization from the same smooth start with the relaxation's rough
     # stage (the solver's default, made for per-vertex noise) ends at the same minimum, with
     # at least one factorization more
-    from shellbuckle.mesh import icosphere
-    from shellbuckle.protocol import deflate as P
-    from shellbuckle.solve import minimize
-    from shellbuckle.solve.gauge import remove_rigid
-    from shellbuckle.solve.relax import move
-    from shellbuckle.solve.system import KKTSystem
-
     factored = []
     original = KKTSystem.factor
 
