@@ -19,7 +19,8 @@ from shellbuckle.params import ShellParameters
 from shellbuckle.solve import NewtonOptions, Workspace, make_solver, minimize, newton
 from shellbuckle.solve.gauge import pinned_dofs, rigid_modes
 from shellbuckle.solve.linear import CountingSolver, _load_mkl
-from shellbuckle.solve.linesearch import ENERGY_NOISE, ENERGY_ROUNDOFF, projected_gradient
+from shellbuckle.solve.linesearch import (ENERGY_NOISE, ENERGY_ROUNDOFF, max_displacement,
+                                          projected_gradient)
 from shellbuckle.solve.newton import ABANDONED
 from test_solve_energies import spring_shell
 
@@ -41,13 +42,19 @@ def assert_kkt(energy, volume, res, V_target, rtol=1e-8):
     assert res.grad_norm == pytest.approx(np.linalg.norm(r), rel=1e-6, abs=1e-12)
 
 
-def tangent_inertia_dense(energy, volume, X):
-    """Negative eigenvalues of Hess E - lam Hess V on {grad V, rigid modes}^perp (dense)."""
+def tangent_problem_dense(energy, volume, X):
+    """``(K, Z, r)``: the dense Hessian of the Lagrangian Hess E - lam Hess V, an orthonormal
+    basis Z of {grad V, rigid modes}^perp and the projected gradient r (flat)."""
     gE, gV = energy.gradient(X), volume.gradient(X)
-    lam, _ = projected_gradient(gE, gV)
+    lam, r = projected_gradient(gE, gV)
     K = (energy.hessian(X) - lam * volume.hessian(X)).toarray()
     C = np.column_stack([gV.ravel(), rigid_modes(X)])
-    Z = scipy.linalg.null_space(C.T)
+    return K, scipy.linalg.null_space(C.T), r.ravel()
+
+
+def tangent_inertia_dense(energy, volume, X):
+    """Negative eigenvalues of Hess E - lam Hess V on {grad V, rigid modes}^perp (dense)."""
+    K, Z, _ = tangent_problem_dense(energy, volume, X)
     ev = np.linalg.eigvalsh(Z.T @ K @ Z)
     return int((ev < -1e-8 * np.abs(ev).max()).sum())
 
@@ -438,13 +445,9 @@ def test_a_gradient_test_below_the_round_off_floor_ends_on_the_step_test():
     assert np.abs(floor.x - plain.x).max() <= 1e-12
     assert floor.grad_norm > 0.0
     # the Newton step at the end, from a dense solve of the KKT system (rigid modes fixed)
-    gE, gV = energy.gradient(floor.x), volume.gradient(floor.x)
-    lam, r = projected_gradient(gE, gV)
-    K = (energy.hessian(floor.x) - lam * volume.hessian(floor.x)).toarray()
-    C = np.column_stack([gV.ravel(), rigid_modes(floor.x)])
-    Z = scipy.linalg.null_space(C.T)
-    s = Z @ np.linalg.solve(Z.T @ K @ Z, -Z.T @ r.ravel())
-    assert np.sqrt((s.reshape(-1, 3) ** 2).sum(1).max()) <= 1e-15 * np.abs(floor.x).max() * 4
+    K, Z, r = tangent_problem_dense(energy, volume, floor.x)
+    s = Z @ np.linalg.solve(Z.T @ K @ Z, -Z.T @ r)
+    assert max_displacement(s.reshape(-1, 3)) <= 1e-15 * np.abs(floor.x).max() * 4
     stalled = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_step=0.0,
                      max_iter=40)
     assert not stalled.success

@@ -483,7 +483,8 @@ def _at_resolution(m: Minimization, st: NewtonState, s: np.ndarray, indefinite: 
     o = m.options
     if st.grad_ok or not o.tol_step or st.mu != 0.0:
         return False
-    if max_displacement(s) > o.tol_step * float(np.sqrt(np.einsum("ij,ij->i", st.X, st.X).max())):
+    step = max_displacement(s)
+    if step > o.tol_step * max_displacement(st.X):
         return False
     if m.system.token.approximate:
         st.single_ok = False
@@ -493,7 +494,7 @@ def _at_resolution(m: Minimization, st: NewtonState, s: np.ndarray, indefinite: 
     if st.dE is not None and abs(st.dE) > o.tol_energy * abs(st.E):
         return False
     log.debug("newton: the Newton step (%.3e) is below the resolution of the coordinates at "
-              "|r| = %.3e", max_displacement(s), st.r_norm)
+              "|r| = %.3e", step, st.r_norm)
     st.converged = True
     st.success, st.message = True, "converged"
     st.certificate = st.fact.precision if st.inertia == 0 else None
