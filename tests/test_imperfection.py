@@ -305,7 +305,7 @@ def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
     for rough in (None, 1.0):
         factored.clear()
         if rough is None:
-            res = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X)
+            res = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True)
         else:
             res = minimize(ctx.energy, ctx.volume, X, V, tol=protocol.tol, workspace=ctx.workspace,
                            pinned=ctx.pinned, precondition_at=state.X, relax_rough_shift=rough)

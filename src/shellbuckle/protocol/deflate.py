@@ -436,7 +436,8 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 
 
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
-              certify: bool = True, relaxed_token=None, certify_single: bool = True):
+              certify: bool = True, relaxed_token=None, certify_single: bool = True,
+              jiggled: bool = False):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
@@ -447,7 +448,8 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     c0 = 0 stage of the cycle, whose minimum is neither reported nor kept); ``relaxed_token``,
     the factorization the minimization that ended at ``relaxed`` ended with (Newton's
     ``precondition_token``, for a start without a jiggle); ``certify_single``, Newton's option
-    (:attr:`State.certify_single`)."""
+    (:attr:`State.certify_single`); ``jiggled``: ``X`` is ``relaxed`` plus the step's
+    imperfection."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -465,7 +467,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
             options["precondition_token"] = relaxed_token
-            if p.smooth_jiggle is not None:
+            if jiggled and p.smooth_jiggle is not None:
                 # a smooth imperfection has no mesh-scale roughness for the relaxation's
                 # rough stage to damp (:mod:`shellbuckle.solve.relax`): skipped
                 options["relax_rough_shift"] = 0.0
@@ -705,7 +707,7 @@ def step(ctx: Context, state: State):
         X = _jiggled(ctx, state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
                            relaxed_token=ctx.workspace.kept,
-                           certify_single=state.certify_single)
+                           certify_single=state.certify_single, jiggled=True)
         _check_domain(ctx, k, result)
         iterations += result.nit
         E_before = result.fun

@@ -99,7 +99,11 @@ lies above ``tol_grad |grad E|`` for the protocol's ``tol_grad = 1e-9``. Hence t
 point whose exact Newton step (unshifted, double precision) moves no vertex by more than
 ``tol_step`` times the largest vertex distance from the origin, after a step that changed
 the energy by at most ``tol_energy |E|``, is the minimum to the precision of its coordinates
-and the minimization ends there, converged (its inertia is that factorization's).
+and the minimization ends there, converged, with the message :data:`AT_RESOLUTION` (its
+inertia is that factorization's where inertia is asked for). The default ``1e-15`` is four to
+nine units in the last place of coordinates of order one. A step the solve could not give
+(no descent: ``-r`` scaled, :meth:`~.system.KKTSystem.step`) is not tested; the test is tried
+at the last allowed Newton step too.
 
 Uncertified minima
 ------------------
@@ -136,6 +140,9 @@ log = logging.getLogger(__name__)
 
 ABANDONED = "abandoned"
 """Start of the message of a minimization stopped by its ``abandon`` test."""
+
+AT_RESOLUTION = "converged (the Newton step is below the resolution of the coordinates)"
+"""Message of a minimization that ended on the step test ("Convergence")."""
 
 
 
@@ -411,11 +418,11 @@ def _newton_step(m: Minimization, st: NewtonState) -> Step | None:
         st.success, st.message = True, "converged"
         st.certificate = st.fact.precision if st.mu == 0.0 and st.inertia == 0 else None
         return None
+    s, slope_s, curv_s, solved = system.step(st.X, st.r, m.volume.value(st.X) - m.V_target)
+    if solved and _at_resolution(m, st, s, indefinite):
+        return None
     if st.k == o.max_iter:
         st.message = f"maximum number of Newton iterations ({o.max_iter}) reached"
-        return None
-    s, slope_s, curv_s = system.step(st.X, st.r, m.volume.value(st.X) - m.V_target)
-    if _at_resolution(m, st, s, indefinite):
         return None
     d, curv_d = _negative_curvature(m, st, indefinite)
     if st.message is not None:
@@ -496,7 +503,9 @@ def _at_resolution(m: Minimization, st: NewtonState, s: np.ndarray, indefinite: 
     log.debug("newton: the Newton step (%.3e) is below the resolution of the coordinates at "
               "|r| = %.3e", step, st.r_norm)
     st.converged = True
-    st.success, st.message = True, "converged"
+    st.success, st.message = True, AT_RESOLUTION
+    if not m.want_inertia:
+        st.inertia = None
     st.certificate = st.fact.precision if st.inertia == 0 else None
     return True
 

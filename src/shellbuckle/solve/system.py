@@ -215,17 +215,19 @@ class KKTSystem:
 
     def step(self, X, r, verr):
         """Newton step ``s`` from the current factorization (rigid part removed), its slope
-        ``r.s`` and the curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it;
-        ``-r / mean|diag K|`` where the solve gives no descent (round-off at convergence). A
-        single-precision factorization's solve is refined in double precision (:meth:`solve`)."""
+        ``r.s``, the curvature ``s.K s / s.s`` of the unshifted tangent Hessian along it, and
+        whether ``s`` is the solve's step: where the solve gives no descent (round-off at
+        convergence) ``s = -r / mean|diag K|`` instead. A single-precision factorization's solve
+        is refined in double precision (:meth:`solve`)."""
         s = self.without_rigid(X, self.solve(-r.ravel()[self.free], -verr, refine=True))
         slope = float(np.einsum("ij,ij->", r, s))
-        if not slope < 0:
+        solved = slope < 0
+        if not solved:
             s = -r / self.diag_scale
             slope = -float(np.einsum("ij,ij->", r, r)) / self.diag_scale
         ss = float(np.einsum("ij,ij->", s, s))
         curv = float(s.ravel() @ self.K_times(s)) / ss if ss > 0 else 0.0
-        return s, slope, curv
+        return s, slope, curv, solved
 
     def quasi_newton_step(self, X, r, pairs, verr, scale: float = 1.0):
         """L-BFGS step ``p = -H r`` whose initial inverse Hessian ``H0`` is the current
