@@ -333,6 +333,9 @@ class Context:
     pinned: np.ndarray | None = None
     """The six dofs that fix the rigid-motion gauge of every minimization of the run (chosen on
     the reference mesh, :func:`~shellbuckle.solve.gauge.pinned_dofs`)."""
+    fold_rings: int = 5
+    """Intersecting faces at most this many edges apart on the mesh are a fold, not a contact
+    (:func:`fold_rings`, :func:`only_local`)."""
 
 
 def state_after(step: int, X: np.ndarray, record: dict, stopped: str | None = None) -> State:
@@ -371,7 +374,8 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
                   V0=V0, contact=ContactChecker(mesh.topology),
                   workspace=Workspace(threads=threads, reproducible=reproducible),
                   c0=c0,
-                  pinned=pinned_dofs(mesh.X))
+                  pinned=pinned_dofs(mesh.X),
+                  fold_rings=fold_rings(mesh.X, mesh.topology.edges, V0))
     return ctx, State(step=0, X=np.array(mesh.X, float))
 
 
@@ -463,7 +467,8 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                    "certify_single": certify_single,
                    "abandon": lambda X: folded_flat(X, hinges),
                    "abandon_thorough": lambda X: (folded_flat(X, hinges)
-                                               or folded_locally(ctx.contact, X))}
+                                               or folded_locally(ctx.contact, X,
+                                                                 ctx.fold_rings))}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
             options["precondition_token"] = relaxed_token
@@ -620,12 +625,29 @@ def _start_again(ctx: Context, result, V_target, X_start: np.ndarray) -> bool:
     (``ABANDONED``), or did not converge and is :func:`_tangled` or :func:`folded_locally`."""
     return not result.success and (result.message.startswith(ABANDONED)
                                    or _tangled(ctx, result.fun, V_target, X_start)
-                                   or folded_locally(ctx.contact, result.x) is not None)
+                                   or folded_locally(ctx.contact, result.x,
+                                                     ctx.fold_rings) is not None)
 
 
 FOLD_RINGS = 5
 """Intersecting faces whose vertices are at most this many edges apart on the mesh are a fold
-(:func:`only_local`)."""
+(:func:`only_local`), on the paper's mesh and coarser ones (:func:`fold_rings`)."""
+
+FOLD_LENGTH = 0.32
+"""The size of a fold, in units of the radius: ``FOLD_RINGS`` mean edges of the paper's
+3594-vertex mesh (0.0636 R), the number of rings a finer mesh counts over it
+(:func:`fold_rings`)."""
+
+
+def fold_rings(X: np.ndarray, edges: np.ndarray, V0: float) -> int:
+    """The rings of the fold test on the reference mesh ``X`` (enclosing ``V0``): the mean
+    edges in ``FOLD_LENGTH`` radii, and never fewer than ``FOLD_RINGS``. A crease that folds
+    through itself spans a length of the shell, not a number of edges (on 40000 vertices a
+    ridge's fold at γ = 29160 reached 6 rings, 0.11 R, where the paper's mesh has two); the
+    contact of distant parts of the shell that ends a run is tens of paper-mesh edges apart
+    on every mesh."""
+    radius = (3.0 * V0 / (4.0 * np.pi)) ** (1.0 / 3.0)
+    return max(FOLD_RINGS, round(FOLD_LENGTH * radius / mean_edge_length(X, edges)))
 
 
 def only_local(checker: ContactChecker, contact, rings: int = FOLD_RINGS) -> bool:
@@ -743,7 +765,7 @@ def step(ctx: Context, state: State):
             contact = ctx.contact.check(result.x)
             if not contact.intersects:
                 break
-            if only_local(ctx.contact, contact):
+            if only_local(ctx.contact, contact, ctx.fold_rings):
                 why = "a fold of the mesh (only neighbouring faces intersect)"
             elif not result.success:  # not a minimum: its contact cannot end the run
                 why = (f"no convergence ({result.message}; E = {result.fun:.6g}) and a "
