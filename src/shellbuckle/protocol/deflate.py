@@ -312,6 +312,16 @@ class State:
     certify_single: bool = True
 
 
+FOLD_RINGS = 5
+"""Intersecting faces whose vertices are at most this many edges apart on the mesh are a fold
+(:func:`only_local`), on the paper's mesh and coarser ones (:func:`fold_rings`)."""
+
+FOLD_LENGTH = 0.32
+"""The size of a fold, in units of the radius: ``FOLD_RINGS`` mean edges of the paper's
+3594-vertex mesh (0.0636 R), the number of rings a finer mesh counts over it
+(:func:`fold_rings`)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Context:
     """Everything fixed during a run: mesh, parameters, protocol, energy, constraint, contact."""
@@ -333,7 +343,7 @@ class Context:
     pinned: np.ndarray | None = None
     """The six dofs that fix the rigid-motion gauge of every minimization of the run (chosen on
     the reference mesh, :func:`~shellbuckle.solve.gauge.pinned_dofs`)."""
-    fold_rings: int = 5
+    fold_rings: int = FOLD_RINGS
     """Intersecting faces at most this many edges apart on the mesh are a fold, not a contact
     (:func:`fold_rings`, :func:`only_local`)."""
 
@@ -627,16 +637,6 @@ def _start_again(ctx: Context, result, V_target, X_start: np.ndarray) -> bool:
                                    or _tangled(ctx, result.fun, V_target, X_start)
                                    or folded_locally(ctx.contact, result.x,
                                                      ctx.fold_rings) is not None)
-
-
-FOLD_RINGS = 5
-"""Intersecting faces whose vertices are at most this many edges apart on the mesh are a fold
-(:func:`only_local`), on the paper's mesh and coarser ones (:func:`fold_rings`)."""
-
-FOLD_LENGTH = 0.32
-"""The size of a fold, in units of the radius: ``FOLD_RINGS`` mean edges of the paper's
-3594-vertex mesh (0.0636 R), the number of rings a finer mesh counts over it
-(:func:`fold_rings`)."""
 
 
 def fold_rings(X: np.ndarray, edges: np.ndarray, V0: float) -> int:
