@@ -170,3 +170,39 @@ def test_describe_returns_plain_values():
     for key in ("asphericity", "dent_depth", "dent_sagitta", "rim_radius", "crest_radius",
                 "contact_distance", "volume", "area"):
         assert isinstance(out[key], float)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_smoothing_by_conjugate_gradients_is_the_direct_solve(kind):
+    """Geometry.smooth (diffusion steps solved by preconditioned conjugate gradients) equals
+    the same steps solved by sparse LU, on a rough dented shape, for a scalar and a vector
+    field and for both smoothing lengths of the analysis; a solve that cannot converge within
+    its iteration limit falls back to LU with the same result."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    from shellbuckle.analysis import descriptors
+
+    X = jiggled(inverted_cap(mesh(kind).X, 50.0), 0.3 * _edge(kind), np.random.default_rng(3))
+    geom = _analyzer(kind).geometry(X)
+    for length in (geom.H_smoothing_length, 0.5 * geom.mean_edge, 0.1 * geom.R_area):
+        tau = length**2 / (2.0 * descriptors.SMOOTHING_STEPS)
+        lu = splu((sp.diags(geom.vertex_area) + tau * geom.stiffness).tocsc())
+        for values in (geom.H, geom.vertex_normal):
+            ref = values.reshape(len(values), -1)
+            for _ in range(descriptors.SMOOTHING_STEPS):
+                ref = lu.solve(geom.vertex_area[:, None] * ref)
+            ref = ref.reshape(values.shape)
+            got = geom.smooth(values, length)
+            assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max()
+    stuck = descriptors.Geometry(**{f: getattr(geom, f) for f in (
+        "X", "face_area", "vertex_area", "vertex_normal", "H", "area", "volume", "R_area",
+        "mean_edge", "stiffness")})
+    original = descriptors.SMOOTHING_MAXITER
+    try:
+        descriptors.SMOOTHING_MAXITER = 1
+        assert np.abs(stuck.smooth(geom.H, length) - geom.smooth(geom.H, length)).max() \
+            <= 1e-9 * np.abs(geom.H).max()
+        assert stuck._systems[float(length)][2] is not None   # the LU fallback was used
+    finally:
+        descriptors.SMOOTHING_MAXITER = original

@@ -173,3 +173,31 @@ def test_a_finer_pattern_partly_found_is_not_counted():
     assert not curve.count_resolved
     full = _curve(R0 * (1 + 0.02 * np.cos(12 * PHI)), 0.01)
     assert full.n_apices == 12 and full.count_resolved
+
+
+def test_the_rim_envelope_tests_only_nearby_rays_with_the_same_result():
+    """The envelope of the rim's segments cut by uniform rays (each segment tested against the
+    rays of its azimuth span) equals, bit for bit, the test of every ray against every segment:
+    on closed curves around the axis, with segments anywhere, through the axis and ending on it."""
+    from shellbuckle.analysis.wrinkles import _envelope, _envelope_dense
+
+    rng = np.random.default_rng(0)
+    for trial in range(120):
+        K = int(rng.choice([8, 64, 256, 1024]))
+        phi = 2.0 * np.pi * np.arange(K) / K
+        S = int(rng.integers(1, 400))
+        th = np.sort(rng.uniform(0, 2 * np.pi, S))
+        r0 = 1 + 0.3 * rng.standard_normal(S)
+        A = np.stack([r0 * np.cos(th), r0 * np.sin(th)], 1)
+        B = np.roll(A, -1, 0)
+        junk = rng.random(S) < 0.2
+        A[junk], B[junk] = rng.normal(size=(junk.sum(), 2)), rng.normal(size=(junk.sum(), 2))
+        if trial % 7 == 0:
+            A[0] = 0.0
+        if trial % 5 == 0:
+            A[-1] = -B[-1]
+        zA, zB = rng.normal(size=S), rng.normal(size=S)
+        got, want = _envelope(A, B, zA, zB, phi), _envelope_dense(A, B, zA, zB, phi)
+        assert np.array_equal(got[0], want[0], equal_nan=True)
+        assert np.array_equal(got[1], want[1], equal_nan=True)
+        assert np.isfinite(got[0]).sum() > 0

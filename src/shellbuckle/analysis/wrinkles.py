@@ -283,7 +283,51 @@ def _unit(v):
 
 def _envelope(A2, B2, zA, zB, phi):
     """Outermost cut of the segments ``A2 -> B2`` (``(S, 2)``, heights ``zA``, ``zB``) by rays
-    from the origin at azimuths ``phi (K,)``: radii and heights ``(K,)``, NaN where none."""
+    from the origin at azimuths ``phi (K,)``: radii and heights ``(K,)``, NaN where none.
+
+    For rays uniform in azimuth (``phi = 2 pi k / K``) each segment is tested only against the
+    rays within its azimuth span (and one more on each side), so the cost is the number of
+    segment-ray crossings rather than ``K S``; the tests and the choice among them (the largest
+    radius, the first segment on a tie) are those of :func:`_envelope_dense`, bit for bit."""
+    K, S = len(phi), len(A2)
+    if K == 0 or S == 0 or not np.array_equal(phi, 2.0 * np.pi * np.arange(K) / K):
+        return _envelope_dense(A2, B2, zA, zB, phi)
+    pa = np.arctan2(A2[:, 1], A2[:, 0])
+    span = np.remainder(np.arctan2(B2[:, 1], B2[:, 0]) - pa + np.pi, 2.0 * np.pi) - np.pi
+    lo = np.minimum(pa, pa + span)
+    k0 = np.floor(lo * K / (2.0 * np.pi)).astype(np.int64) - 1
+    k1 = np.ceil((lo + np.abs(span)) * K / (2.0 * np.pi)).astype(np.int64) + 1
+    count = k1 - k0 + 1
+    # A segment through (or ending at) the origin, or as wide as half a turn: every ray.
+    every = ((np.abs(span) > np.pi - 1e-6) | ~(A2 != 0).any(axis=1) | ~(B2 != 0).any(axis=1)
+             | (count >= K))
+    k0[every], count[every] = 0, K
+    seg = np.repeat(np.arange(S), count)
+    start = np.cumsum(count) - count
+    ray = np.remainder(np.repeat(k0, count) + np.arange(int(count.sum())) - np.repeat(start, count),
+                       K)
+    d = np.stack([np.cos(phi), np.sin(phi)], axis=1)[ray]
+    delta = B2[seg] - A2[seg]
+    a = A2[seg]
+    den = delta[:, 0] * d[:, 1] - delta[:, 1] * d[:, 0]
+    num = a[:, 0] * d[:, 1] - a[:, 1] * d[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -num / den
+        r = ((a + t[:, None] * delta) * d).sum(axis=-1)
+    valid = (den != 0) & (t >= 0) & (t <= 1) & (r > 0)
+    seg, ray, t, r = seg[valid], ray[valid], t[valid], r[valid]
+    order = np.lexsort((seg, -r, ray))  # per ray: the largest radius, then the first segment
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]] if len(order) else order
+    rho = np.full(K, np.nan)
+    z = np.full(K, np.nan)
+    k = seg[first]
+    rho[ray[first]] = r[first]
+    z[ray[first]] = zA[k] + t[first] * (zB[k] - zA[k])
+    return rho, z
+
+
+def _envelope_dense(A2, B2, zA, zB, phi):
+    """:func:`_envelope` by testing every ray against every segment (any azimuths)."""
     d = np.stack([np.cos(phi), np.sin(phi)], axis=1)[:, None, :]  # (K, 1, 2)
     delta = (B2 - A2)[None]
     den = delta[..., 0] * d[..., 1] - delta[..., 1] * d[..., 0]
