@@ -152,7 +152,7 @@ def test_an_unconverged_step_that_intersects_itself_is_jiggled_again(monkeypatch
     spiked = mesh.X.copy()
     spiked[0] = -1.5 * mesh.X[0]
     assert ctx.contact.check(spiked).intersects
-    assert not deflate.only_local(ctx.contact, ctx.contact.check(spiked))
+    assert not deflate.only_local(ctx.contact, ctx.contact.check(spiked), rings=ctx.fold_rings)
 
     def first_crosses(*args, converged=False, **kwargs):
         result = minimize(*args, **kwargs)
@@ -225,11 +225,12 @@ def test_a_fold_is_told_from_a_contact_of_distant_faces():
     outside = np.flatnonzero(~np.isfinite(expected))
     centres = mesh.X[faces].mean(axis=1)
     far = outside[np.argmax(np.linalg.norm(centres[outside] - centres[0], axis=1))]
-    assert only_local(checker, contact([(0, edge_ring)]))
-    assert not only_local(checker, contact([(0, outside[0])]))
-    assert not only_local(checker, contact([(0, far)]))
-    assert not only_local(checker, contact([(0, edge_ring), (0, far)]))  # any distant pair
-    assert not only_local(checker, contact([]))
+    assert only_local(checker, contact([(0, edge_ring)]), rings=FOLD_RINGS)
+    assert not only_local(checker, contact([(0, outside[0])]), rings=FOLD_RINGS)
+    assert not only_local(checker, contact([(0, far)]), rings=FOLD_RINGS)
+    # any distant pair
+    assert not only_local(checker, contact([(0, edge_ring), (0, far)]), rings=FOLD_RINGS)
+    assert not only_local(checker, contact([]), rings=FOLD_RINGS)
 
 
 def test_a_fold_is_a_length_of_the_shell_on_every_mesh():
@@ -255,9 +256,9 @@ def test_a_fold_is_a_length_of_the_shell_on_every_mesh():
         for length, local in ((0.2, True), (0.6, False)):
             g = int(np.argmin(np.abs(arc - length)))
             contact = SimpleNamespace(intersects=True, pairs=np.array([[0, g]]))
-            assert only_local(checker, contact, rings[n]) == local, (n, length)
+            assert only_local(checker, contact, rings=rings[n]) == local, (n, length)
             if n > 3612 and local:  # the coarse mesh's ring count would call it a contact
-                assert not only_local(checker, contact, FOLD_RINGS)
+                assert not only_local(checker, contact, rings=FOLD_RINGS)
     assert rings[3612] == FOLD_RINGS
     assert rings[39692] == pytest.approx(FOLD_RINGS * np.sqrt(39692 / 3612), abs=1)
 
@@ -332,16 +333,16 @@ def test_a_local_self_intersection_is_a_fold_and_a_distant_one_is_not():
 
     mesh = icosphere(6)
     checker = ContactChecker(mesh.topology)
-    assert folded_locally(checker, mesh.X) is None
+    assert folded_locally(checker, mesh.X, rings=FOLD_RINGS) is None
     folded = _vertex_pushed_through_a_nearby_face(mesh)
     pairs, n = checker.intersecting_pairs(folded)
     assert n > 0 and (checker.face_distance(pairs[:, 0], pairs[:, 1], FOLD_RINGS) <= 2).all()
-    reason = folded_locally(checker, folded)
+    reason = folded_locally(checker, folded, rings=FOLD_RINGS)
     assert reason is not None and f"faces {pairs[0, 0]} and {pairs[0, 1]} intersect" in reason
     spiked = mesh.X.copy()
     spiked[0] = -1.5 * mesh.X[0]  # through the far side of the shell: a contact, not a fold
     assert checker.intersecting_pairs(spiked)[1] > 0
-    assert folded_locally(checker, spiked) is None
+    assert folded_locally(checker, spiked, rings=FOLD_RINGS) is None
 
 
 def test_a_stalled_minimization_left_in_a_fold_is_jiggled_again_without_the_cycle(monkeypatch):

@@ -478,7 +478,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                    "abandon": lambda X: folded_flat(X, hinges),
                    "abandon_thorough": lambda X: (folded_flat(X, hinges)
                                                or folded_locally(ctx.contact, X,
-                                                                 ctx.fold_rings))}
+                                                                 rings=ctx.fold_rings))}
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
             options["precondition_token"] = relaxed_token
@@ -636,7 +636,7 @@ def _start_again(ctx: Context, result, V_target, X_start: np.ndarray) -> bool:
     return not result.success and (result.message.startswith(ABANDONED)
                                    or _tangled(ctx, result.fun, V_target, X_start)
                                    or folded_locally(ctx.contact, result.x,
-                                                     ctx.fold_rings) is not None)
+                                                     rings=ctx.fold_rings) is not None)
 
 
 def fold_rings(X: np.ndarray, edges: np.ndarray, V0: float) -> int:
@@ -650,7 +650,7 @@ def fold_rings(X: np.ndarray, edges: np.ndarray, V0: float) -> int:
     return max(FOLD_RINGS, round(FOLD_LENGTH * radius / mean_edge_length(X, edges)))
 
 
-def only_local(checker: ContactChecker, contact, rings: int = FOLD_RINGS) -> bool:
+def only_local(checker: ContactChecker, contact, *, rings: int) -> bool:
     """Whether the surface intersects itself (``contact``, a result of ``checker.check``) only
     where nearby faces meet (a vertex of each within ``rings`` edges): a fold left by the jiggle
     (a triangle folded over an edge keeps its metric, so at large gamma the fold can be a local
@@ -667,8 +667,7 @@ def _all_near(checker: ContactChecker, pairs, rings: int) -> bool:
         (checker.face_distance(pairs[:, 0], pairs[:, 1], rings) <= rings).all())
 
 
-def folded_locally(checker: ContactChecker, X: np.ndarray,
-                   rings: int = FOLD_RINGS) -> str | None:
+def folded_locally(checker: ContactChecker, X: np.ndarray, *, rings: int) -> str | None:
     """Why ``X`` is tangled, or None: its surface passes through itself, and only where
     nearby faces meet (:func:`only_local`), as where the jiggle pushed a vertex through a face
     a few rings away. The minimizer's steps stall there without any hinge folded flat
@@ -765,7 +764,7 @@ def step(ctx: Context, state: State):
             contact = ctx.contact.check(result.x)
             if not contact.intersects:
                 break
-            if only_local(ctx.contact, contact, ctx.fold_rings):
+            if only_local(ctx.contact, contact, rings=ctx.fold_rings):
                 why = "a fold of the mesh (only neighbouring faces intersect)"
             elif not result.success:  # not a minimum: its contact cannot end the run
                 why = (f"no convergence ({result.message}; E = {result.fun:.6g}) and a "
