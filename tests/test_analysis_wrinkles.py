@@ -201,3 +201,36 @@ def test_the_rim_envelope_tests_only_nearby_rays_with_the_same_result():
         assert np.array_equal(got[0], want[0], equal_nan=True)
         assert np.array_equal(got[1], want[1], equal_nan=True)
         assert np.isfinite(got[0]).sum() > 0
+
+
+def test_prominent_peaks_are_scipys():
+    """The rim's apices use SciPy's definitions of a peak and of its prominence
+    (scipy.signal.find_peaks, the oracle) without importing scipy.signal: the same indices and
+    prominences on random signals, walks and signals with flat tops, for several thresholds."""
+    from scipy.signal import find_peaks
+
+    from shellbuckle.analysis.wrinkles import _prominent_peaks
+
+    rng = np.random.default_rng(1)
+    for trial in range(600):
+        x = rng.normal(size=int(rng.integers(1, 300)))
+        if trial % 3 == 0:
+            x = np.round(x * 2) / 2
+        if trial % 5 == 0:
+            x = np.cumsum(x)
+        threshold = float(rng.choice([0.0, 0.1, 0.5, 2.0]))
+        got, prominences = _prominent_peaks(x, threshold)
+        want, props = find_peaks(x, prominence=threshold)
+        assert np.array_equal(got, want)
+        assert np.array_equal(prominences, props["prominences"])
+
+
+def test_the_analysis_does_not_import_scipy_signal():
+    """scipy.signal (and the scipy.stats it pulls in) costs about a second of start-up."""
+    import subprocess
+    import sys
+
+    code = ("import sys, shellbuckle.analysis, shellbuckle.locate, shellbuckle.cli; "
+            "print('scipy.signal' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -85,7 +85,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import find_peaks
 
 #: Rays from the axis at which the rim is sampled (uniform in azimuth): at least RIM_SAMPLES,
 #: and at least RAYS_PER_EDGE per mean edge length along the circumference 2 pi R_area (rounded
@@ -541,10 +540,41 @@ def _periodic_peaks(r: np.ndarray, prominence: float):
     K = len(r)
     start = int(np.argmin(r))
     rolled = np.concatenate([np.roll(r, -start), [r[start]]])
-    peaks, props = find_peaks(rolled, prominence=prominence)
+    peaks, prominences = _prominent_peaks(rolled, prominence)
     idx = (peaks + start) % K
     order = np.argsort(idx)
-    return idx[order], props["prominences"][order]
+    return idx[order], prominences[order]
+
+
+def _prominent_peaks(x: np.ndarray, prominence: float) -> tuple[np.ndarray, np.ndarray]:
+    """Local maxima of ``x`` (a flat top counts once, at its middle; the end samples never)
+    with topographic prominence ``>= prominence``: indices (ascending) and prominences, as
+    ``scipy.signal.find_peaks(x, prominence=prominence)`` defines them (without importing
+    ``scipy.signal``, a second of start-up). The prominence of a peak is its height above the
+    higher of the two lowest points reached on each side before a higher sample or the end."""
+    x = np.asarray(x, dtype=np.float64)
+    n = len(x)
+    peaks = []
+    i = 1
+    while i < n - 1:
+        if x[i - 1] < x[i]:
+            ahead = i + 1
+            while ahead < n - 1 and x[ahead] == x[i]:
+                ahead += 1
+            if x[ahead] < x[i]:
+                peaks.append((i + ahead - 1) // 2)
+                i = ahead
+        i += 1
+    peaks = np.asarray(peaks, dtype=np.intp)
+    prom = np.empty(len(peaks))
+    for j, p in enumerate(peaks):
+        higher = np.flatnonzero(x[:p] > x[p])
+        left = x[(higher[-1] + 1 if len(higher) else 0):p + 1].min()
+        higher = np.flatnonzero(x[p + 1:] > x[p])
+        right = x[p:(p + 1 + higher[0] if len(higher) else n)].min()
+        prom[j] = x[p] - max(left, right)
+    keep = prom >= prominence
+    return peaks[keep], prom[keep]
 
 
 def rim_summary(rim: Rim | None) -> dict:

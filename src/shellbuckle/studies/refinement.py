@@ -28,8 +28,12 @@ import dataclasses
 import math
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
+    import pandas as pd
 
 #: The issue's three gamma labels and its two readings of the bending energy.
 GAMMAS = (2333.0, 15163.0, 29160.0)
@@ -236,6 +240,8 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
     sample std and the seeds that have it; per group and quantity the extrapolation
     (:func:`richardson` on the means) and the paper's mesh's error ``q(3594) - q0`` (absolute,
     and relative to ``|q0|``)."""
+    import pandas as pd
+
     rows = []
     if runs.empty:
         return pd.DataFrame(rows, columns=list(COLUMNS))
@@ -297,6 +303,8 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
 def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """Build the refinement table of the finished runs in ``paths`` (default: every run of the
     sweep folder ``out``) and write it in ``out`` (:func:`write_report`); returns it."""
+    import pandas as pd
+
     paths = [out] if paths is None else list(paths)
     runs = collect(paths, energy_at_values) if paths else pd.DataFrame(
         columns=[*GROUP, "n_vertices", *quantities(energy_at_values)])
