@@ -145,7 +145,7 @@ class Geometry:
         Each step is solved by conjugate gradients preconditioned by the diagonal
         (:func:`_pcg`, relative residual ``SMOOTHING_RTOL``): ``M + tau K`` is symmetric positive
         definite with a condition number of order ``1 + tau / h^2`` (``h`` the mean edge), a
-        few tens for the lengths used here on any mesh, so a solve is a few tens of sparse
+        few tens for the lengths used here on meshes of up to a million vertices, so a solve is a few tens of sparse
         products instead of a sparse factorization. A solve that does not converge within
         ``SMOOTHING_MAXITER`` iterations (a degenerate mesh) is made by sparse LU instead.
         """
@@ -184,7 +184,7 @@ def _pcg(A, d_inv, B, X0, rtol: float | None = None, maxiter: int | None = None)
     Z = d_inv[:, None] * R
     P = Z.copy()
     rz = np.einsum("ij,ij->j", R, Z)
-    for _ in range(maxiter + 1):
+    for _ in range(maxiter):
         if (np.linalg.norm(R, axis=0) <= target).all():
             return X
         AP = A @ P
@@ -197,7 +197,7 @@ def _pcg(A, d_inv, B, X0, rtol: float | None = None, maxiter: int | None = None)
         beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
         P = Z + beta * P
         rz = rz_new
-    return None
+    return X if (np.linalg.norm(R, axis=0) <= target).all() else None
 
 
 @dataclass(frozen=True, eq=False)
