@@ -53,6 +53,19 @@ def test_a_sequence_that_is_not_monotone_or_diverges_is_not_extrapolated():
     assert richardson(h, [math.nan, 1.0, 1.2]).method == "assumed"
 
 
+@pytest.mark.parametrize("p", [0.1, 0.3, 0.45])
+def test_a_sequence_whose_increments_barely_shrink_is_not_extrapolated(p):
+    # an exact power law of order below MIN_ORDER: its fit would land far beyond the data (the
+    # paper reading's wrinkle onset at gamma 29160, 0.055 -> 0.049 -> 0.041 on 3594 / 10000 /
+    # 40000 vertices, "fitted" an order 0.17 and a negative dV/V)
+    h = mean_edge([3594, 10_000, 40_000])
+    assert p < refinement.MIN_ORDER
+    assert richardson(h, 0.04 + 0.3 * h ** p).method == "not converged"
+    assert richardson(h, [0.05511, 0.04887, 0.04127]).method == "not converged"
+    fit = richardson(h, 0.04 + 0.3 * h ** (refinement.MIN_ORDER + 0.05))
+    assert fit.method == "fitted" and fit.value == pytest.approx(0.04, rel=1e-9)
+
+
 def test_energy_at_a_stored_step_is_the_stored_value_and_linear_between():
     table = pd.DataFrame({"dV_over_V": [0.0, 0.019, 0.038, 0.057],
                           "E_total": [2.0, 3.0, 5.0, 4.0]})

@@ -46,7 +46,12 @@ ENERGY_AT = (0.1, 0.3, 0.5)
 #: Order of the discretization error assumed when it cannot be fitted (two meshes): the
 #: bending and stretching energies of the discrete shell converge as h^2 on smooth shapes.
 ASSUMED_ORDER = 2.0
-#: Fitted orders outside (0, MAX_ORDER] mean the sequence is not in its asymptotic regime.
+#: Fitted orders outside [MIN_ORDER, MAX_ORDER] mean the sequence is not in its asymptotic
+#: regime. The discrete energies converge as h^2 and a located threshold at least as h; an order
+#: below 1/2 means increments that barely shrink (by less than 1.41 when h halves), and the
+#: extrapolation would reach beyond the finest value by more than 2.4 times the last increment
+#: (1 / (2^p - 1)): a guess, not a limit.
+MIN_ORDER = 0.5
 MAX_ORDER = 20.0
 #: Surface Evolver's jiggle at the paper's temperature 0.05: std 0.028 R per coordinate.
 PAPER_JIGGLE_SIGMA = 0.028
@@ -174,7 +179,7 @@ ONE_MESH = Extrapolation(math.nan, math.nan, math.nan, "one mesh")
 
 def _order(h, q) -> float | None:
     """The p with (q1 - q2)/(q2 - q3) = (h1^p - h2^p)/(h2^p - h3^p), h1 > h2 > h3, or None
-    when none lies in (0, MAX_ORDER]. The right side grows monotonically with p."""
+    when none lies in [MIN_ORDER, MAX_ORDER]. The right side grows monotonically with p."""
     from scipy.optimize import brentq
 
     (h1, h2, h3), (q1, q2, q3) = h, q
@@ -183,7 +188,7 @@ def _order(h, q) -> float | None:
     def gap(p):
         return math.log((h1 ** p - h2 ** p) / (h2 ** p - h3 ** p)) - target
 
-    low, high = 1e-6, MAX_ORDER
+    low, high = MIN_ORDER, MAX_ORDER
     if gap(low) > 0 or gap(high) < 0:
         return None
     return float(brentq(gap, low, high, xtol=1e-14, rtol=1e-14))
