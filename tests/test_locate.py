@@ -97,6 +97,53 @@ def test_located_point_lies_on_the_old_branch(runs):
     assert p["new"]["pressure"] < 0.6 * p["old"]["pressure"]
 
 
+def test_the_stored_step_bracket_holds_the_threshold_of_the_step_from_the_stored_step(runs):
+    """stored_step_bracket, read from the bisection's evaluations, contains the threshold of the
+    protocol's step from the stored step before the event, found here by its own bisection in
+    which every evaluation starts from that stored step (the oracle)."""
+    import dataclasses
+
+    from shellbuckle.analysis.classify import classify
+    from shellbuckle.locate import _context, stored_step_bracket
+
+    _, run = runs
+    p = located(run)["primary_buckling"]
+    k = p["step"]
+    table = run.table.set_index("step")
+    a, b = stored_step_bracket(p, table.loc[k - 1, "dV_over_V"])
+    assert table.loc[k - 1, "dV_over_V"] <= a < b <= table.loc[k, "dV_over_V"]
+    ctx = _context(run, 1)
+    start = (run.positions(k - 1), run.store.record(k - 1))
+
+    def buckles(v):
+        schedule = list(ctx.protocol.schedule)
+        schedule[k - 1] = v
+        at = dataclasses.replace(ctx, protocol=dataclasses.replace(ctx.protocol,
+                                                                   schedule=tuple(schedule)))
+        state, _ = protocol_mod.step(at, protocol_mod.state_after(k - 1, *start))
+        return classify(state.X, run.faces).shape != "sphere"
+
+    lo, hi = table.loc[k - 1, "dV_over_V"], table.loc[k, "dV_over_V"]
+    while hi - lo > TOL:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if buckles(mid) else (mid, hi)
+    assert a <= lo and hi <= b
+
+
+def test_the_stored_step_bracket_reads_the_evaluations_before_the_start_moved():
+    from shellbuckle.locate import stored_step_bracket
+
+    def point(outcomes, volumes):
+        return {"step_dV_over_V": 0.076, "evaluations": [
+            {"dV_over_V": v, "shows_event": o == "E"} for o, v in zip(outcomes, volumes)]}
+
+    assert stored_step_bracket(point("EoEE", [0.0665, 0.06175, 0.0641, 0.0629]), 0.057) == \
+        (0.06175, 0.0665)
+    assert stored_step_bracket(point("oE", [0.0665, 0.07125]), 0.057) == (0.0665, 0.076)
+    assert stored_step_bracket(point("EEE", [0.0665, 0.06175, 0.0594]), 0.057) == (0.057, 0.0594)
+    assert stored_step_bracket(point("", []), 0.057) == (0.057, 0.076)
+
+
 def test_a_run_not_located_has_the_same_table(runs):
     plain, found = runs
     assert not (plain.path / LOCATED_JSON).exists() and (found.path / LOCATED_JSON).exists()

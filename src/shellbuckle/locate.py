@@ -144,6 +144,25 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     return out
 
 
+def stored_step_bracket(point: dict, lo: float) -> tuple[float, float]:
+    """The bracket of ``point``'s event for the step from the stored step before it alone.
+
+    ``lo``: that step's dV/V. The evaluations made before the bisection first moved its lower
+    end all started from the stored step; the first one that stayed on the old branch and the
+    upper end at that moment bound where the protocol's step from the stored step reaches the
+    new branch. Later evaluations start from the old-branch state the bisection had reached,
+    and for a barrier crossing their outcome depends on that start (docs/analysis.md,
+    "Located events"), so this bracket can be much wider than ``[point["lo"], point["hi"]]``
+    and need not contain it."""
+    hi = float(point["step_dV_over_V"])
+    for evaluation in point["evaluations"]:
+        if evaluation["shows_event"]:
+            hi = float(evaluation["dV_over_V"])
+        else:
+            return float(evaluation["dV_over_V"]), hi
+    return float(lo), hi
+
+
 def located(run_or_path) -> dict[str, dict]:
     """The located points stored with a run, ``{name: point}`` (empty if none)."""
     return read_located(Run.of(run_or_path).path)
