@@ -2,6 +2,7 @@
 computation, and the primary buckling of a gamma = 271 icosphere located by bisection within
 its tolerance, between the energy crossing and the classical threshold, on the old branch."""
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from shellbuckle import theory
 from shellbuckle.analysis.collect import collect_runs, threshold_points
 from shellbuckle.analysis.events import events, thresholds
 from shellbuckle.cli import main
-from shellbuckle.locate import _mechanism, located, locate
+from shellbuckle.locate import _context, _mechanism, located, locate
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.protocol import deflate as protocol_mod
@@ -77,9 +78,36 @@ def test_primary_buckling_is_located_within_tol_between_crossing_and_classical(r
     assert len(p["evaluations"]) == 8
     assert any(e["shows_event"] for e in p["evaluations"])
     assert not all(e["shows_event"] for e in p["evaluations"])
-    # the old branch is a proper minimum there: a barrier is crossed, no eigenvalue vanishes
+    # the old branch is still a proper minimum at the located point ...
     assert p["old"]["lowest_eigenvalue"] > 0 and p["old"]["inertia"] == 0
-    assert p["mechanism"] == "barrier crossing"
+
+
+def test_the_mechanism_agrees_with_the_sphere_branch_followed_without_jiggle(runs):
+    """On this mesh the sphere branch ends (its lowest eigenvalue falls to zero) about 0.003
+    after the located point, within the protocol's step: the step made without any jiggle (no
+    help over a barrier) keeps the sphere at the located point and loses it within one step
+    after it, so the event is classed an instability, the eigenvalue's zero between the two."""
+    from shellbuckle.analysis.classify import classify
+
+    _, run = runs
+    p = located(run)["primary_buckling"]
+    k = p["step"]
+    step = p["step_dV_over_V"] - run.table.set_index("step").loc[k - 1, "dV_over_V"]
+    ctx = _context(run, 1)
+    still = dataclasses.replace(ctx.protocol, temperature=0.0)
+    start = protocol_mod.state_after(k - 1, run.positions(k - 1), run.store.record(k - 1))
+
+    def shape_without_jiggle(v):
+        schedule = list(still.schedule)
+        schedule[k - 1] = v
+        at = dataclasses.replace(ctx, protocol=dataclasses.replace(still,
+                                                                   schedule=tuple(schedule)))
+        return classify(protocol_mod.step(at, start)[0].X, run.faces).shape
+
+    assert shape_without_jiggle(p["lo"]) == "sphere"
+    assert shape_without_jiggle(p["hi"] + step) != "sphere"
+    assert p["mechanism"] == "instability"
+    assert p["lo"] < p["eigenvalue_zero_at"] <= p["lo"] + step
 
 
 def test_located_point_lies_on_the_old_branch(runs):
@@ -97,51 +125,33 @@ def test_located_point_lies_on_the_old_branch(runs):
     assert p["new"]["pressure"] < 0.6 * p["old"]["pressure"]
 
 
-def test_the_stored_step_bracket_holds_the_threshold_of_the_step_from_the_stored_step(runs):
-    """stored_step_bracket, read from the bisection's evaluations, contains the threshold of the
-    protocol's step from the stored step before the event, found here by its own bisection in
-    which every evaluation starts from that stored step (the oracle)."""
-    import dataclasses
-
+def test_the_bisection_is_the_step_from_the_stored_step(runs):
+    """Every evaluation starts from the stored step before the event: the located bracket is
+    that of an independent bisection of the protocol's step from that stored step (the oracle),
+    and the last old state equals that step made to the bracket's lower end."""
     from shellbuckle.analysis.classify import classify
-    from shellbuckle.locate import _context, stored_step_bracket
 
     _, run = runs
     p = located(run)["primary_buckling"]
     k = p["step"]
     table = run.table.set_index("step")
-    a, b = stored_step_bracket(p, table.loc[k - 1, "dV_over_V"])
-    assert table.loc[k - 1, "dV_over_V"] <= a < b <= table.loc[k, "dV_over_V"]
     ctx = _context(run, 1)
     start = (run.positions(k - 1), run.store.record(k - 1))
 
-    def buckles(v):
+    def step_to(v):
         schedule = list(ctx.protocol.schedule)
         schedule[k - 1] = v
         at = dataclasses.replace(ctx, protocol=dataclasses.replace(ctx.protocol,
                                                                    schedule=tuple(schedule)))
-        state, _ = protocol_mod.step(at, protocol_mod.state_after(k - 1, *start))
-        return classify(state.X, run.faces).shape != "sphere"
+        return protocol_mod.step(at, protocol_mod.state_after(k - 1, *start))
 
     lo, hi = table.loc[k - 1, "dV_over_V"], table.loc[k, "dV_over_V"]
     while hi - lo > TOL:
         mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if buckles(mid) else (mid, hi)
-    assert a <= lo and hi <= b
-
-
-def test_the_stored_step_bracket_reads_the_evaluations_before_the_start_moved():
-    from shellbuckle.locate import stored_step_bracket
-
-    def point(outcomes, volumes):
-        return {"step_dV_over_V": 0.076, "evaluations": [
-            {"dV_over_V": v, "shows_event": o == "E"} for o, v in zip(outcomes, volumes)]}
-
-    assert stored_step_bracket(point("EoEE", [0.0665, 0.06175, 0.0641, 0.0629]), 0.057) == \
-        (0.06175, 0.0665)
-    assert stored_step_bracket(point("oE", [0.0665, 0.07125]), 0.057) == (0.0665, 0.076)
-    assert stored_step_bracket(point("EEE", [0.0665, 0.06175, 0.0594]), 0.057) == (0.057, 0.0594)
-    assert stored_step_bracket(point("", []), 0.057) == (0.057, 0.076)
+        buckled = classify(step_to(mid)[0].X, run.faces).shape != "sphere"
+        lo, hi = (lo, mid) if buckled else (mid, hi)
+    assert (p["lo"], p["hi"]) == (lo, hi)
+    assert p["old"]["E_total"] == step_to(lo)[1]["E_total"]
 
 
 def test_a_run_not_located_has_the_same_table(runs):
@@ -184,7 +194,14 @@ def test_location_is_kept_reproducible_and_recovers_from_damage(runs, caplog):
     assert thresholds(run)["primary_buckling"] == events(run, located=False)[0].dV_over_V
     redone = locate(run, tol=TOL, threads=1)
     assert redone["primary_buckling"]["dV_over_V"] == first["primary_buckling"]["dV_over_V"]
-    assert json.loads((run.path / LOCATED_JSON).read_text())["version"] == 1
+    stored = json.loads((run.path / LOCATED_JSON).read_text())
+    assert stored["version"] == 2
+    # a file of the bisection that advanced its start is not used, and is located again
+    (run.path / LOCATED_JSON).write_text(json.dumps(stored | {"version": 1}))
+    caplog.clear()
+    assert located(run) == {}
+    assert "advanced its start" in caplog.text
+    assert locate(run, tol=TOL, threads=1)["primary_buckling"]["lo"] == first["primary_buckling"]["lo"]
 
 
 def test_locate_command(runs, capsys):

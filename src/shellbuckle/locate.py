@@ -6,17 +6,23 @@ sphere and the first step. Here each threshold event of a deflation run (the pri
 the loss of axisymmetry and the onset of wrinkles of :mod:`shellbuckle.analysis.events`) found
 at step ``k`` is located between the stored steps ``k - 1`` and ``k`` by bisection in volume:
 
-1. the bracket is ``[lo, hi] = [dV/V of step k - 1, dV/V of step k]``; the state at ``lo`` is
-   the last state of the old branch, the stored conformation of step ``k - 1``;
-2. at ``mid = (lo + hi) / 2`` the protocol's step is made from the state at ``lo`` exactly as
-   the run made step ``k`` (the same jiggle, drawn from the step's seeded stream and scaled to
-   the step, the same minimizations and zero-curvature cycle), only to the volume ``mid``: the
+1. the bracket is ``[lo, hi] = [dV/V of step k - 1, dV/V of step k]``; the start of every
+   evaluation is the last state of the old branch the run stored, the conformation of step
+   ``k - 1``;
+2. at ``mid = (lo + hi) / 2`` the protocol's step is made from that start exactly as the run
+   made step ``k`` (the same jiggle, drawn from the step's seeded stream and scaled to the
+   step, the same minimizations and zero-curvature cycle), only to the volume ``mid``: the
    state the paper's protocol would reach there from the old branch;
 3. the result is classified (:func:`shellbuckle.analysis.classify.classify`); if it shows the
    event (``sphere -> not sphere``, a rim ``polygonal`` or ``wrinkled``, ``wrinkled``) the
-   bracket becomes ``[lo, mid]``, else ``[mid, hi]`` and the state at ``mid`` becomes the last
-   state of the old branch;
+   bracket becomes ``[lo, mid]``, else ``[mid, hi]``;
 4. until ``hi - lo <= tol`` (default ``1e-4``: eight evaluations for the paper's step).
+
+The start does not move with the bracket. Where the old branch is still a minimum (a barrier
+crossing, below) the outcome of a step depends on where it starts: a step from an old-branch
+state nearer the barrier crosses it earlier, so a bisection that advanced its start would close
+on a point of its own grid (docs/analysis.md, "Located events"). From the stored step the
+outcome is a function of the volume alone, the threshold of the protocol's own step.
 
 The located threshold is the bracket's middle, with an uncertainty of half its width. Stored
 with it (:mod:`shellbuckle.store.located`) are both ends' energies, pressures and shapes, each
@@ -144,25 +150,6 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     return out
 
 
-def stored_step_bracket(point: dict, lo: float) -> tuple[float, float]:
-    """The bracket of ``point``'s event for the step from the stored step before it alone.
-
-    ``lo``: that step's dV/V. The evaluations made before the bisection first moved its lower
-    end all started from the stored step; the first one that stayed on the old branch and the
-    upper end at that moment bound where the protocol's step from the stored step reaches the
-    new branch. Later evaluations start from the old-branch state the bisection had reached,
-    and for a barrier crossing their outcome depends on that start (docs/analysis.md,
-    "Located events"), so this bracket can be much wider than ``[point["lo"], point["hi"]]``
-    and need not contain it."""
-    hi = float(point["step_dV_over_V"])
-    for evaluation in point["evaluations"]:
-        if evaluation["shows_event"]:
-            hi = float(evaluation["dV_over_V"])
-        else:
-            return float(evaluation["dV_over_V"]), hi
-    return float(lo), hi
-
-
 def located(run_or_path) -> dict[str, dict]:
     """The located points stored with a run, ``{name: point}`` (empty if none)."""
     return read_located(Run.of(run_or_path).path)
@@ -202,6 +189,7 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     wanted = EVENT_SHAPES[event.name]
     X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
     X_hi, rec_hi = run.positions(k), run.store.record(k)
+    start = protocol_mod.state_after(k - 1, X_lo, rec_lo)  # every evaluation's start
     # the volumes reached (a branch's step 0 is its parent's step, not the sphere)
     lo, hi = float(rec_lo["dV_over_V"]), float(rec_hi["dV_over_V"])
     lo_start, hi_start = lo, hi
@@ -219,9 +207,8 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         schedule[k - 1] = mid
         at_mid = dataclasses.replace(ctx, protocol=dataclasses.replace(protocol,
                                                                        schedule=tuple(schedule)))
-        state = protocol_mod.state_after(k - 1, X_lo, rec_lo)
         try:
-            state, record = protocol_mod.step(at_mid, state)
+            state, record = protocol_mod.step(at_mid, start)
         except LeftDomain as exc:
             failure = f"the step to dV/V = {mid:.6f} left the physical domain: {exc.reason}"
             log.warning("%s: %s; %s located to [%.6f, %.6f] only", run.path, failure,

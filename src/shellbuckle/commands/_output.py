@@ -66,11 +66,3 @@ def print_located(run, points: dict) -> None:
         if not p.get("complete", True):
             line += f"; incomplete: {p['failure']}"
         print(line)
-        if p["mechanism"] == "barrier crossing" and k - 1 in table.index:
-            from ..locate import stored_step_bracket
-
-            a, b = stored_step_bracket(p, before)
-            if b - a > 2.0 * (p["hi"] - p["lo"]):
-                print(f"  {'':<17} the step from step {k - 1} alone buckles between {a:.5f} "
-                      f"and {b:.5f} (a barrier crossing: later evaluations started nearer the "
-                      "barrier; docs/analysis.md)")

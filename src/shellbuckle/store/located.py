@@ -4,10 +4,14 @@ A refinement of the run, not part of its protocol: the volume at which each buck
 happens, found by bisection between two stored steps (:mod:`shellbuckle.locate`). The table
 and the steps are never changed by it. The file maps an event name to its located point::
 
-    {"version": 1,
+    {"version": 2,
      "events": {"primary_buckling": {"step": 3, "tol": 1e-4, "lo": ..., "hi": ...,
                                      "dV_over_V": ..., "uncertainty": ..., "old": {...},
                                      "new": {...}, "evaluations": [...], ...}, ...}}
+
+Version 2: every evaluation of the bisection starts from the stored step before the event.
+A version-1 file (whose bisection advanced its start, so that a barrier crossing closed on a
+point of its own grid) is ignored with a warning and replaced when the run is located again.
 
 It is replaced atomically under its own lock, one event at a time, so an interrupted location
 keeps the events already located. A file that cannot be read is reported and treated as absent
@@ -27,7 +31,7 @@ from .atomic import FileLock, atomic_write_bytes, remove_temporaries
 log = logging.getLogger(__name__)
 
 LOCATED_JSON, LOCATED_LOCK = "located.json", ".located.lock"
-LOCATED_VERSION = 1
+LOCATED_VERSION = 2
 #: Default tolerance of a located event, in dV/V (the final bracket's width).
 LOCATE_TOL = 1e-4
 
@@ -42,6 +46,9 @@ def read_located(folder) -> dict[str, dict]:
         return {}
     try:
         data = json.loads(text)
+        if data.get("version") == 1:
+            raise ValueError("located by a bisection that advanced its start (version 1), "
+                             "whose barrier crossings are not the protocol's thresholds")
         if data.get("version") != LOCATED_VERSION or not isinstance(data.get("events"), dict):
             raise ValueError(f"version {data.get('version')!r}, expected {LOCATED_VERSION}")
         return dict(data["events"])
