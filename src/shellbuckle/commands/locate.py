@@ -12,7 +12,7 @@ def register(sub) -> None:
         sub, "locate", help="locate a run's buckling events between its volume steps",
         description="Locate the primary buckling, the loss of axisymmetry and the onset of "
                     "wrinkles of the deflation run in DIR by bisection in volume between the "
-                    "two stored steps around each: from the last state of the old branch, the "
+                    "two stored steps around each: from the stored step before the event, the "
                     "protocol's step (same jiggle, minimizations and zero-curvature cycle) is "
                     "made to the middle volume and classified, until the bracket is narrower "
                     "than --tol. The located points (volume, energies, pressure, the lowest "
