@@ -10,8 +10,10 @@ vertices) it prints a plain table, one row per mesh and shape:
 
 - ``capsule``: the cap above 60 degrees from the pole mirrored through its plane (an
   axisymmetric dent);
-- ``five-fold``: the same dent with a five-fold rim (the cap's edge at
-  ``alpha(phi) = 60 deg (1 + 0.08 cos 5 phi)``), which the classifier frames and counts.
+- ``five-fold``: the same dent with a five-fold rim, the cap's edge at
+  ``alpha = 60 deg (1 + 0.15 Re(w^5))``, ``w = (x + i y) / (R sin 60 deg)`` (at the rim about
+  ``60 deg (1 + 0.15 cos 5 phi)``, fading towards the axis as ``rho^5`` so that the surface is
+  smooth there): a wrinkled bowl with W = 5, which the classifier frames and counts.
 
 Columns: the geometry (areas, normals, Jülicher curvature and its smoothing), the whole
 ``ShapeAnalyzer.describe`` + ``classify_descriptors`` (best of ``--repeats``), the same per
@@ -43,12 +45,14 @@ ALPHA = np.radians(60.0)
 
 
 def dented(X: np.ndarray, m: int = 0, eps: float = 0.0) -> np.ndarray:
-    """The cap of half-angle ``ALPHA (1 + eps cos(m phi))`` around +z mirrored through the plane
-    of its edge at each azimuth (``m = 0``: a spherical cap inverted)."""
+    """The cap of half-angle ``ALPHA (1 + eps Re(w^m))``, ``w = (x + i y) / (R sin ALPHA)``,
+    around +z, each vertex reflected along z through the height of that cap's edge (``m = 0``:
+    a spherical cap inverted). ``Re(w^m)`` is a polynomial in x and y, so the reflected floor
+    is smooth at the axis (an azimuthal ``cos(m phi)`` would give it ``m`` ridges there)."""
     R = np.linalg.norm(X, axis=1).max()
     z = X[:, 2] / R
-    phi = np.arctan2(X[:, 1], X[:, 0])
-    c = np.cos(ALPHA * (1.0 + eps * np.cos(m * phi)))
+    w = (X[:, 0] + 1j * X[:, 1]) / (R * np.sin(ALPHA))
+    c = np.cos(ALPHA * (1.0 + eps * (w ** m).real))
     out = X.copy()
     out[:, 2] -= 2.0 * R * np.clip(z - c, 0.0, None)
     return out
@@ -88,7 +92,7 @@ def main(argv=None) -> None:
     for level in args.levels:
         mesh = icosphere(level)
         analyzer = ShapeAnalyzer(mesh.faces, n_vertices=len(mesh.X))
-        for name, X in (("capsule", dented(mesh.X)), ("five-fold", dented(mesh.X, 5, 0.08))):
+        for name, X in (("capsule", dented(mesh.X)), ("five-fold", dented(mesh.X, 5, 0.15))):
             def analyse(X=X):
                 return classify_descriptors(analyzer.describe(X))
 

@@ -221,6 +221,21 @@ def test_wrinkled_bowl_under_a_ripple_has_W_equal_m(kind, m, alpha_deg):
     assert c.count_resolved
 
 
+@pytest.mark.parametrize("kind", ["icosphere(63)",
+                                  pytest.param("icosphere(126)", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("build, m", [(polygonal_dent, 5), (wrinkled_bowl, 5),
+                                      (wrinkled_bowl, 8)])
+def test_the_class_and_count_hold_on_40k_and_160k_vertices(kind, build, m):
+    """The lengths of the classifier (curvature smoothing, rim sampling, depth floors) were set
+    on 3.6k-10k meshes: the same smooth dents keep their class and count on 39692 and 158762
+    vertices (about 2 and 8 s each)."""
+    c = _classify(kind, _placed(kind, build, m, 55, 700 + 10 * m))
+    wrinkled = build is wrinkled_bowl
+    assert (c.shape, c.n_dimples, c.corners, c.W) == \
+        ("wrinkled" if wrinkled else "polygonal", 1, m, m if wrinkled else 0)
+    assert c.count_resolved
+
+
 def _check_against_resolution(c, kind, m, alpha_deg, wrinkled):
     spacing = _spacing_in_edges(kind, m, alpha_deg)
     expected = "wrinkled" if wrinkled else "polygonal"

@@ -178,7 +178,8 @@ def jiggled(X, amplitude, rng):
 
 MESHES = {"icosphere": lambda: icosphere(19), "random": lambda: random_sphere(3594, seed=2),
           "icosphere(16)": lambda: icosphere(16), "icosphere(32)": lambda: icosphere(32),
-          "random(10242)": lambda: random_sphere(10242, seed=3)}
+          "random(10242)": lambda: random_sphere(10242, seed=3),
+          "icosphere(63)": lambda: icosphere(63), "icosphere(126)": lambda: icosphere(126)}
 _cache = {}
 
 
