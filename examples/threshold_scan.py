@@ -12,14 +12,10 @@ with no change of volume. Prints one character per volume: ``o`` the old branch 
 """
 
 import argparse
-import dataclasses
 
 import numpy as np
 
-from shellbuckle.analysis.classify import classify
-from shellbuckle.locate import _context
-from shellbuckle.protocol import deflate as protocol
-from shellbuckle.store.view import Run
+from shellbuckle.locate import StepFromStored
 
 
 def main() -> None:
@@ -30,32 +26,17 @@ def main() -> None:
     parser.add_argument("stop", type=float)
     parser.add_argument("count", type=int)
     args = parser.parse_args()
-    run = Run.open(args.run)
-    ctx = _context(run, 1)
-    k = args.step
-    X0, record0 = run.positions(k - 1), run.store.record(k - 1)
+    step_to = StepFromStored(args.run, args.step, threads=1)
 
-    def step_to(v, X, record, jiggle=True):
-        schedule = list(ctx.protocol.schedule)
-        schedule[k - 1] = v
-        p = dataclasses.replace(ctx.protocol, schedule=tuple(schedule))
-        if not jiggle:
-            p = dataclasses.replace(p, **{name: 0.0 for name in
-                                          ("temperature", "jiggle", "smooth_jiggle")
-                                          if getattr(p, name) is not None})
-        state, rec = protocol.step(dataclasses.replace(ctx, protocol=p),
-                                   protocol.state_after(k - 1, X, record))
-        return state, rec
-
-    def outcome(state):
-        return "o" if classify(state.X, run.faces).shape == "sphere" else "E"
+    def outcome(shape):
+        return "o" if shape == "sphere" else "E"
 
     volumes = np.linspace(args.start, args.stop, args.count)
     from_stored, at_volume = "", ""
     for v in volumes:
-        from_stored += outcome(step_to(v, X0, record0)[0])
-        quiet, quiet_record = step_to(v, X0, record0, jiggle=False)
-        at_volume += outcome(step_to(v, quiet.X, quiet_record)[0])
+        from_stored += outcome(step_to.shape(v))
+        quiet, quiet_record = step_to(v, jiggle=False)
+        at_volume += outcome(step_to.shape(v, start=(quiet.X, quiet_record)))
     print("dV/V:", " ".join(f"{v:.4f}" for v in volumes))
     print("the step from the stored step:   ", from_stored)
     print("the branch jiggled at the volume:", at_volume)

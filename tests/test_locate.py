@@ -154,6 +154,25 @@ def test_the_bisection_is_the_step_from_the_stored_step(runs):
     assert p["old"]["E_total"] == step_to(lo)[1]["E_total"]
 
 
+def test_the_step_from_the_stored_step_remakes_the_stored_step(runs):
+    """StepFromStored to the stored volume of step k is the run's own step k, to the bit; made
+    without its jiggle it is another minimization that stays on the sphere branch."""
+    from shellbuckle.locate import StepFromStored
+
+    _, run = runs
+    k = located(run)["primary_buckling"]["step"]
+    step_to = StepFromStored(run, k - 1)
+    table = run.table.set_index("step")
+    state, record = step_to(table.loc[k - 1, "dV_over_V"])
+    assert np.array_equal(state.X, run.positions(k - 1))
+    assert record["E_total"] == table.loc[k - 1, "E_total"]
+    quiet, quiet_record = step_to(table.loc[k - 1, "dV_over_V"], jiggle=False)
+    assert not np.array_equal(quiet.X, state.X)
+    assert quiet_record["E_total"] == pytest.approx(record["E_total"], rel=1e-8)
+    with pytest.raises(ValueError, match="no stored step before it"):
+        StepFromStored(run, 0)
+
+
 def test_a_run_not_located_has_the_same_table(runs):
     plain, found = runs
     assert not (plain.path / LOCATED_JSON).exists() and (found.path / LOCATED_JSON).exists()

@@ -150,6 +150,42 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     return out
 
 
+class StepFromStored:
+    """The protocol's step ``k`` of a stored deflation run, made again from its stored step
+    ``k - 1`` to any volume: what every evaluation of the bisection does (module docstring).
+
+    ``StepFromStored(run, k)(dV_over_V)`` gives ``(state, record)`` as
+    :func:`shellbuckle.protocol.deflate.step` does; with ``jiggle=False`` the step is made
+    without its imperfection (no help over a barrier: the old branch followed), and ``start``
+    (positions and record of a state at step ``k - 1``) replaces the stored start. ``threads``
+    as in :func:`shellbuckle.run.deflate`. :meth:`shape` classifies the result."""
+
+    def __init__(self, run_or_path, k: int, *, threads: int | None = 1, ctx=None):
+        self.run = Run.of(run_or_path)
+        if not 1 <= k <= len(self.run.protocol.schedule):
+            raise ValueError(f"step {k} has no stored step before it in {self.run.path}")
+        self.k = k
+        self.ctx = _context(self.run, threads) if ctx is None else ctx
+        self.start = (self.run.positions(k - 1), self.run.store.record(k - 1))
+
+    def __call__(self, dV_over_V: float, *, jiggle: bool = True, start=None):
+        protocol = self.ctx.protocol
+        schedule = list(protocol.schedule)
+        schedule[self.k - 1] = float(dV_over_V)
+        protocol = dataclasses.replace(protocol, schedule=tuple(schedule))
+        if not jiggle:
+            protocol = dataclasses.replace(protocol, **{
+                name: 0.0 for name in ("temperature", "jiggle", "smooth_jiggle")
+                if getattr(protocol, name) is not None})
+        X, record = self.start if start is None else start
+        return protocol_mod.step(dataclasses.replace(self.ctx, protocol=protocol),
+                                 protocol_mod.state_after(self.k - 1, X, record))
+
+    def shape(self, dV_over_V: float, **kwargs) -> str:
+        """The class of the step's result (:func:`shellbuckle.analysis.classify.classify`)."""
+        return classify(self(dV_over_V, **kwargs)[0].X, self.run.faces).shape
+
+
 def located(run_or_path) -> dict[str, dict]:
     """The located points stored with a run, ``{name: point}`` (empty if none)."""
     return read_located(Run.of(run_or_path).path)
@@ -189,7 +225,7 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     wanted = EVENT_SHAPES[event.name]
     X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
     X_hi, rec_hi = run.positions(k), run.store.record(k)
-    start = protocol_mod.state_after(k - 1, X_lo, rec_lo)  # every evaluation's start
+    step_to = StepFromStored(run, k, ctx=ctx)  # every evaluation starts from step k - 1
     # the volumes reached (a branch's step 0 is its parent's step, not the sphere)
     lo, hi = float(rec_lo["dV_over_V"]), float(rec_hi["dV_over_V"])
     lo_start, hi_start = lo, hi
@@ -199,16 +235,11 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     # the old branch one stored step earlier, for the eigenvalue's trend if lo does not move
     before = float(run.store.record(k - 2)["dV_over_V"]) if k >= 2 else math.nan
     lowest_before = _lowest(ctx, run.positions(k - 2)) if k >= 2 else math.nan
-    protocol = ctx.protocol
     evaluations, failure = [], None
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        schedule = list(protocol.schedule)
-        schedule[k - 1] = mid
-        at_mid = dataclasses.replace(ctx, protocol=dataclasses.replace(protocol,
-                                                                       schedule=tuple(schedule)))
         try:
-            state, record = protocol_mod.step(at_mid, start)
+            state, record = step_to(mid)
         except LeftDomain as exc:
             failure = f"the step to dV/V = {mid:.6f} left the physical domain: {exc.reason}"
             log.warning("%s: %s; %s located to [%.6f, %.6f] only", run.path, failure,
