@@ -36,9 +36,9 @@ LOCATED_VERSION = 2
 LOCATE_TOL = 1e-4
 
 
-def read_located(folder) -> dict[str, dict]:
+def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
     """The located events of the run in ``folder``, ``{name: point}`` (empty if none, or if
-    the file is damaged: a warning says so)."""
+    the file is damaged or of an older version: a warning says so unless ``warn`` is False)."""
     path = Path(folder) / LOCATED_JSON
     try:
         text = path.read_text(encoding="utf-8")
@@ -53,6 +53,8 @@ def read_located(folder) -> dict[str, dict]:
             raise ValueError(f"version {data.get('version')!r}, expected {LOCATED_VERSION}")
         return dict(data["events"])
     except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, ValueError) as exc:
+        if not warn:
+            return {}
         log.warning("%s cannot be read (%s): the located events are ignored; "
                     "`shellbuckle locate %s` locates them again", path, exc, Path(folder))
         return {}
@@ -65,7 +67,7 @@ def write_located(folder, events: Mapping[str, Mapping]) -> None:
     lock.acquire(blocking=True)
     try:
         remove_temporaries(folder, {LOCATED_JSON})
-        merged = read_located(folder) | {name: dict(point) for name, point in events.items()}
+        merged = read_located(folder, warn=False) | {name: dict(point) for name, point in events.items()}
         text = json.dumps(json_safe({"version": LOCATED_VERSION, "events": merged}), indent=1,
                           allow_nan=False)
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
