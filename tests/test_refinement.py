@@ -51,6 +51,14 @@ def test_a_sequence_that_is_not_monotone_or_diverges_is_not_extrapolated():
     assert richardson(h, [math.nan, 1.0, math.nan]).method == "one mesh"
     # a missing coarse value leaves two meshes: the assumed order
     assert richardson(h, [math.nan, 1.0, 1.2]).method == "assumed"
+    # a missing value between two meshes that have it (the paper reading's wrinkle onset at
+    # gamma 2333: 0.778 on 3594 vertices, none before contact on 10000, 0.611 on 40000), or on
+    # the finest mesh, is no sequence
+    for q in ([0.778, math.nan, 0.611], [1.0, 1.2, math.nan], [1.0, 1.1, math.nan, 1.2]):
+        h4 = mean_edge([3594, 10_000, 40_000, 160_000][:len(q)])
+        fit = richardson(h4, q)
+        assert fit.method == "gap" and math.isnan(fit.value)
+        assert "no value on a finer mesh" in fit.describe()
 
 
 @pytest.mark.parametrize("p", [0.1, 0.3, 0.45])
