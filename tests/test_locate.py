@@ -106,6 +106,9 @@ def test_the_mechanism_agrees_with_the_sphere_branch_followed_without_jiggle(run
 
     assert shape_without_jiggle(p["lo"]) == "sphere"
     assert shape_without_jiggle(p["hi"] + step) != "sphere"
+    # where the branch ends, 0.002-0.005 after the located point (docs/analysis.md)
+    assert shape_without_jiggle(0.194) == "sphere"
+    assert shape_without_jiggle(0.197) != "sphere"
     assert p["mechanism"] == "instability"
     assert p["lo"] < p["eigenvalue_zero_at"] <= p["lo"] + step
 
@@ -151,6 +154,7 @@ def test_the_bisection_is_the_step_from_the_stored_step(runs):
         buckled = classify(step_to(mid)[0].X, run.faces).shape != "sphere"
         lo, hi = (lo, mid) if buckled else (mid, hi)
     assert (p["lo"], p["hi"]) == (lo, hi)
+    assert lo > table.loc[k - 1, "dV_over_V"]  # the lower end moved: its state is a new step
     assert p["old"]["E_total"] == step_to(lo)[1]["E_total"]
 
 
@@ -171,6 +175,8 @@ def test_the_step_from_the_stored_step_remakes_the_stored_step(runs):
     assert quiet_record["E_total"] == pytest.approx(record["E_total"], rel=1e-8)
     with pytest.raises(ValueError, match="no stored step before it"):
         StepFromStored(run, 0)
+    with pytest.raises(ValueError, match="not in the schedule"):
+        StepFromStored(run, len(run.protocol.schedule) + 1)
 
 
 def test_a_run_not_located_has_the_same_table(runs):
@@ -220,7 +226,9 @@ def test_location_is_kept_reproducible_and_recovers_from_damage(runs, caplog):
     caplog.clear()
     assert located(run) == {}
     assert "advanced its start" in caplog.text
-    assert locate(run, tol=TOL, threads=1)["primary_buckling"]["lo"] == first["primary_buckling"]["lo"]
+    redone = locate(run, tol=TOL, threads=1)["primary_buckling"]
+    assert redone["lo"] == first["primary_buckling"]["lo"]
+    assert json.loads((run.path / LOCATED_JSON).read_text())["version"] == 2
 
 
 def test_locate_command(runs, capsys):

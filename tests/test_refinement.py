@@ -54,11 +54,18 @@ def test_a_sequence_that_is_not_monotone_or_diverges_is_not_extrapolated():
     # a missing value between two meshes that have it (the paper reading's wrinkle onset at
     # gamma 2333: 0.778 on 3594 vertices, none before contact on 10000, 0.611 on 40000), or on
     # the finest mesh, is no sequence
-    for q in ([0.778, math.nan, 0.611], [1.0, 1.2, math.nan], [1.0, 1.1, math.nan, 1.2]):
+    for q in ([0.778, math.nan, 0.611], [1.0, 1.2, math.nan], [1.0, 1.1, math.nan, 1.2],
+              [math.nan, 1.0, math.nan, 2.0]):
         h4 = mean_edge([3594, 10_000, 40_000, 160_000][:len(q)])
         fit = richardson(h4, q)
         assert fit.method == "gap" and math.isnan(fit.value)
         assert "no value on a finer mesh" in fit.describe()
+    # the order of the meshes given does not matter; a mesh of unknown size is left out
+    h3 = mean_edge([3594, 10_000, 40_000])
+    assert richardson(h3[::-1], [0.611, math.nan, 0.778]).method == "gap"
+    fit = richardson(h3[::-1], [1.2, 1.1, 1.0])
+    assert fit == richardson(h3, [1.0, 1.1, 1.2]) and fit.method == "fitted"
+    assert richardson([*h3[:2], math.nan], [1.0, 1.1, math.nan]).method == "assumed"
 
 
 @pytest.mark.parametrize("p", [0.1, 0.3, 0.45])

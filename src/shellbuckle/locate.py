@@ -158,15 +158,24 @@ class StepFromStored:
     :func:`shellbuckle.protocol.deflate.step` does; with ``jiggle=False`` the step is made
     without its imperfection (no help over a barrier: the old branch followed), and ``start``
     (positions and record of a state at step ``k - 1``) replaces the stored start. ``threads``
-    as in :func:`shellbuckle.run.deflate`. :meth:`shape` classifies the result."""
+    as in :func:`shellbuckle.run.deflate`. :meth:`shape` classifies the result. Only runs that
+    :func:`locatable` accepts (volume-controlled deflations minimized to convergence) can be
+    stepped so; ValueError otherwise, or when the run has no step ``k`` or no stored step
+    ``k - 1``."""
 
     def __init__(self, run_or_path, k: int, *, threads: int | None = 1, ctx=None):
         self.run = Run.of(run_or_path)
-        if not 1 <= k <= len(self.run.protocol.schedule):
+        why = locatable(self.run)
+        if why is not None:
+            raise ValueError(f"{self.run.path} cannot be stepped again: {why}")
+        if k < 1:
             raise ValueError(f"step {k} has no stored step before it in {self.run.path}")
+        if k > len(self.run.protocol.schedule):
+            raise ValueError(f"step {k} is not in the schedule of {self.run.path} "
+                             f"({len(self.run.protocol.schedule)} steps)")
         self.k = k
-        self.ctx = _context(self.run, threads) if ctx is None else ctx
         self.start = (self.run.positions(k - 1), self.run.store.record(k - 1))
+        self.ctx = _context(self.run, threads) if ctx is None else ctx
 
     def __call__(self, dV_over_V: float, *, jiggle: bool = True, start=None):
         protocol = self.ctx.protocol
@@ -223,9 +232,9 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     t0 = time.perf_counter()
     k = event.step
     wanted = EVENT_SHAPES[event.name]
-    X_lo, rec_lo = run.positions(k - 1), run.store.record(k - 1)
-    X_hi, rec_hi = run.positions(k), run.store.record(k)
     step_to = StepFromStored(run, k, ctx=ctx)  # every evaluation starts from step k - 1
+    X_lo, rec_lo = step_to.start
+    X_hi, rec_hi = run.positions(k), run.store.record(k)
     # the volumes reached (a branch's step 0 is its parent's step, not the sphere)
     lo, hi = float(rec_lo["dV_over_V"]), float(rec_hi["dV_over_V"])
     lo_start, hi_start = lo, hi

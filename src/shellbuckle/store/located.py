@@ -61,13 +61,15 @@ def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
 
 
 def write_located(folder, events: Mapping[str, Mapping]) -> None:
-    """Add or replace the located points ``{name: point}`` of the run in ``folder``."""
+    """Add or replace the located points ``{name: point}`` of the run in ``folder`` (a damaged
+    or older file is replaced without a warning: the points it held are made again)."""
     folder = Path(folder)
     lock = FileLock(folder / LOCATED_LOCK)
     lock.acquire(blocking=True)
     try:
         remove_temporaries(folder, {LOCATED_JSON})
-        merged = read_located(folder, warn=False) | {name: dict(point) for name, point in events.items()}
+        merged = read_located(folder, warn=False) | {name: dict(point)
+                                                     for name, point in events.items()}
         text = json.dumps(json_safe({"version": LOCATED_VERSION, "events": merged}), indent=1,
                           allow_nan=False)
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))

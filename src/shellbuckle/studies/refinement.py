@@ -146,8 +146,9 @@ class Extrapolation:
     """``q(h) = value + c h^order`` through the finest meshes; ``method`` says how the order
     was had: ``fitted`` (three meshes, monotone), ``assumed`` (:data:`ASSUMED_ORDER`, two
     meshes), ``equal`` (the two finest give the same value), ``not converged`` (value NaN:
-    three that are not monotone, or a fitted order outside (0, :data:`MAX_ORDER`]), ``no
-    value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one)."""
+    three that are not monotone, or a fitted order outside [:data:`MIN_ORDER`,
+    :data:`MAX_ORDER`]), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
+    ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one)."""
 
     value: float
     order: float
@@ -205,12 +206,15 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER) -> Extrapolation:
     NaN values of the coarsest meshes are left out and the finest meshes used: with three or
     more, the three finest fit ``q = q0 + c h^p`` exactly when the sequence is monotone (else:
     not converged); with two, the order is ``assumed_order``:
-    ``q0 = q2 + (q2 - q1) h2^p / (h1^p - h2^p)``. A NaN on a mesh finer than one with a value
-    (an event seen on 3594 and 40000 vertices but not on 10000) is not converged."""
+    ``q0 = q2 + (q2 - q1) h2^p / (h1^p - h2^p)``. When two or more meshes have a value, a NaN
+    on a mesh finer than the coarsest of them (an event seen on 3594 and 40000 vertices but not
+    on 10000) gives :data:`GAP`. Meshes of unknown size are left out."""
     h, q = np.asarray(h, dtype=float), np.asarray(q, dtype=float)
+    known = np.isfinite(h)
+    h, q = h[known], q[known]
     order = np.argsort(-h, kind="stable")
     h, q = h[order], q[order]
-    valued = np.flatnonzero(np.isfinite(h) & np.isfinite(q))
+    valued = np.flatnonzero(np.isfinite(q))
     gap = len(valued) > 1 and not np.isfinite(q[valued[0]:]).all()
     h, q = h[valued], q[valued]
     if len(h) < 2 or len(np.unique(h)) < len(h):
