@@ -87,22 +87,16 @@ def test_the_mechanism_agrees_with_the_sphere_branch_followed_without_jiggle(run
     after the located point, within the protocol's step: the step made without any jiggle (no
     help over a barrier) keeps the sphere at the located point and loses it within one step
     after it, so the event is classed an instability, the eigenvalue's zero between the two."""
-    from shellbuckle.analysis.classify import classify
+    from shellbuckle.locate import StepFromStored
 
     _, run = runs
     p = located(run)["primary_buckling"]
     k = p["step"]
     step = p["step_dV_over_V"] - run.table.set_index("step").loc[k - 1, "dV_over_V"]
-    ctx = _context(run, 1)
-    still = dataclasses.replace(ctx.protocol, temperature=0.0)
-    start = protocol_mod.state_after(k - 1, run.positions(k - 1), run.store.record(k - 1))
+    step_to = StepFromStored(run, k)
 
     def shape_without_jiggle(v):
-        schedule = list(still.schedule)
-        schedule[k - 1] = v
-        at = dataclasses.replace(ctx, protocol=dataclasses.replace(still,
-                                                                   schedule=tuple(schedule)))
-        return classify(protocol_mod.step(at, start)[0].X, run.faces).shape
+        return step_to.shape(v, jiggle=False)
 
     assert shape_without_jiggle(p["lo"]) == "sphere"
     assert shape_without_jiggle(p["hi"] + step) != "sphere"
