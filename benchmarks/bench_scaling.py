@@ -18,8 +18,10 @@ sizes named in ``--whole``. One thread unless ``--threads``.
 Printed: one line per step with ``--per-step``; then per size the steps before buckling (before
 the first pressure drop) and after, with the mean wall time per step, KKT factorizations per
 step and minimizer iterations per step (Newton and quasi-Newton steps of the step's three
-minimizations) in each part, the whole-run time where a whole run was made, the peak resident
-memory of the process, and the growth exponent of the time per step before buckling between
+minimizations) in each part, the mean ``move`` of a step after buckling (the largest vertex
+displacement from the step's start to its end, in mean edge lengths of the mesh: how far the dent
+travels over the mesh in one step), the whole-run time where a whole run was made, the peak
+resident memory of the process, and the growth exponent of the time per step before buckling between
 successive sizes and over the whole range (a least-squares fit of log t = a + b log N).
 The first lines name the machine and time a fixed piece of work on it
 (``benchmarks/machine.py``); compare numbers only together with that line.
@@ -65,6 +67,7 @@ def one_size(n: int, gamma: float, steps: int | None, seed: int, threads: int, o
     from shellbuckle.protocol import deflate as protocol_mod
     from shellbuckle.protocol.deflate import Protocol
     from shellbuckle.solve.linear import CountingSolver
+    from shellbuckle.solve.linesearch import max_displacement, mean_edge_length
     from shellbuckle.solve.workspace import Workspace
 
     params = ShellParameters.from_gamma(gamma, nu=1.0 / 3.0)
@@ -80,19 +83,21 @@ def one_size(n: int, gamma: float, steps: int | None, seed: int, threads: int, o
     solver = CountingSolver(ctx.workspace.solver)
     ctx = dataclasses.replace(ctx, workspace=Workspace(solver))
     init = time.perf_counter() - t0
+    edge = mean_edge_length(mesh.faces, mesh.X)
     rows = []
     while state.stopped is None:
-        before = solver.n_factor
+        before, X_before = solver.n_factor, state.X
         state, record = protocol_mod.step(ctx, state)
         rows.append({"step": record["step"], "dV_over_V": record["dV_over_V"],
                      "pressure": record["pressure"], "wall_s": record["wall_s"],
                      "iterations": record["iterations"], "factorizations": solver.n_factor - before,
+                     "move": max_displacement(state.X - X_before) / edge,
                      "converged": bool(record["converged"])})
         if per_step:
             r = rows[-1]
             print(f"    {n:>6} vertices step {r['step']:3d}  dV/V={r['dV_over_V']:.3f}  "
                   f"p={r['pressure']:.5g}  it={r['iterations']:4d}  fact={r['factorizations']:3d}  "
-                  f"{r['wall_s']:.2f} s", file=sys.stderr, flush=True)
+                  f"move={r['move']:.2f} edges  {r['wall_s']:.2f} s", file=sys.stderr, flush=True)
     total = time.perf_counter() - t0
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return {"vertices": mesh.n_vertices, "gamma": gamma, "build_s": build, "init_s": init,
@@ -118,8 +123,8 @@ def _fmt(x: float, spec: str) -> str:
 
 def table(results: list) -> list[str]:
     lines = [f"{'vertices':>8} {'steps':>5} {'pre':>3} {'s/step pre':>10} {'s/step post':>11} "
-             f"{'fact pre':>8} {'fact post':>9} {'it pre':>6} {'it post':>7} {'whole s':>8} "
-             f"{'peak MB':>8} {'exponent':>8}"]
+             f"{'fact pre':>8} {'fact post':>9} {'it pre':>6} {'it post':>7} "
+             f"{'move post':>9} {'whole s':>8} {'peak MB':>8} {'exponent':>8}"]
     previous = None
     for r in results:
         pre, post = _parts(r["rows"])
@@ -133,6 +138,7 @@ def table(results: list) -> list[str]:
                      f"{_fmt(_mean(post, 'factorizations'), '9.1f')} "
                      f"{_fmt(_mean(pre, 'iterations'), '6.0f')} "
                      f"{_fmt(_mean(post, 'iterations'), '7.0f')} "
+                     f"{_fmt(_mean(post, 'move') if 'move' in r['rows'][0] else math.nan, '9.1f')} "
                      f"{_fmt(r['total_s'] if r['whole'] else math.nan, '8.1f')} "
                      f"{r['peak_mb']:8.0f} {_fmt(exponent, '8.2f')}")
         previous = (r["vertices"], t_pre)
