@@ -317,3 +317,39 @@ def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
     # the same shape (the two paths may end moved rigidly against each other)
     assert np.abs(remove_rigid(rough.x, smooth.x - rough.x)).max() <= 1e-8
     assert counts[0] < counts[1]
+
+
+def test_an_imperfection_smaller_than_the_smooth_start_distance_is_still_relaxed(monkeypatch):
+    # a start closer than relax_rough_min_move edges to the last minimum takes quasi-Newton
+    # steps on the unshifted Hessian there, unless it carries an imperfection: then every
+    # mesh relaxes it the same way, however small it is in edge lengths. Oracles: the
+    # protocol's minimization is, to the bit, the explicit relaxation without a smooth start,
+    # and the smooth start reaches the same (unique, spherical) minimum by the other path
+    params = ShellParameters.from_gamma(2333, nu=1 / 3)
+    protocol = Protocol.paper(until=0.1, seed=0, smooth_jiggle=0.005, smooth_degree=12)
+    ctx, state = P.init(icosphere(16), params, protocol, threads=1)
+    X = P._jiggled(ctx, state.X, protocol.smooth_jiggle, step_rng(0, 1))
+    V = ctx.V0 * (1.0 - protocol.schedule[0])
+    assert move(ctx.volume, X, state.X) < 0.3  # below the smooth-start distance
+    seen = []
+    inner = P.minimize
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs)
+        return inner(*args, **kwargs, history=True)
+
+    monkeypatch.setattr(P, "minimize", spy)
+    step = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True, imperfect=True)
+    assert seen[-1]["smooth_start"] is False
+    P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True)  # no imperfection
+    assert "smooth_start" not in seen[-1]
+    monkeypatch.undo()
+    common = dict(tol=protocol.tol, workspace=ctx.workspace, pinned=ctx.pinned,
+                  precondition_at=state.X, relax_rough_shift=0.0, history=True)
+    relaxed = minimize(ctx.energy, ctx.volume, X, V, smooth_start=False, **common)
+    smooth = minimize(ctx.energy, ctx.volume, X, V, **common)
+    assert step.history[0]["step"] == "relax" and smooth.history[0]["step"] != "relax"
+    assert np.array_equal(step.x, relaxed.x) and step.nit == relaxed.nit
+    assert relaxed.success and smooth.success and relaxed.inertia == smooth.inertia == 0
+    assert relaxed.fun == pytest.approx(smooth.fun, rel=1e-10)
+    assert np.abs(remove_rigid(smooth.x, relaxed.x - smooth.x)).max() <= 1e-8

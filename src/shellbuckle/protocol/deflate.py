@@ -451,7 +451,7 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
               certify: bool = True, relaxed_token=None, certify_single: bool = True,
-              jiggled: bool = False):
+              jiggled: bool = False, imperfect: bool = False):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
@@ -463,7 +463,12 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     the factorization the minimization that ended at ``relaxed`` ended with (Newton's
     ``precondition_token``, for a start without a jiggle); ``certify_single``, Newton's option
     (:attr:`State.certify_single`); ``jiggled``: ``X`` is ``relaxed`` plus the step's
-    imperfection."""
+    imperfection, ``imperfect``: one of nonzero size. A start with an imperfection is always
+    relaxed (Newton's ``smooth_start=False``), however small it is against the mesh, so that
+    every mesh takes the same path from it (the shifted relaxation of
+    :mod:`shellbuckle.solve.relax`) and the outcome of a step near an instability (sphere or
+    dent) does not switch with the imperfection's size in mesh units (:mod:`shellbuckle.solve.
+    newton`, "Smooth starts")."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -486,6 +491,8 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                 # a smooth imperfection has no mesh-scale roughness for the relaxation's
                 # rough stage to damp (:mod:`shellbuckle.solve.relax`): skipped
                 options["relax_rough_shift"] = 0.0
+            if imperfect:
+                options["smooth_start"] = False
         tokens = [w.factorization for w in warm or () if w.factorization is not None]
         if p.prerelax and tokens:
             options["warm_start"] = tokens
@@ -728,7 +735,8 @@ def step(ctx: Context, state: State):
         X = _jiggled(ctx, state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
                            relaxed_token=ctx.workspace.kept,
-                           certify_single=state.certify_single, jiggled=True)
+                           certify_single=state.certify_single, jiggled=True,
+                           imperfect=sigma > 0)
         _check_domain(ctx, k, result)
         iterations += result.nit
         E_before = result.fun

@@ -36,7 +36,11 @@ def factor_positive(system, mu: float, escape_saddles: bool, approximate: bool =
     the tangent Hessian when ``mu = 0`` was factored in double precision (else ``None``: an
     ``approximate`` factorization's inertia only guides the shift, it is never reported nor
     used to certify a minimum) and ``indefinite`` whether the tangent Hessian is known to have
-    one; ``None`` if no shift up to ``1e12 mean|diag K|`` works."""
+    one; ``None`` if no shift up to ``1e12 mean|diag K|`` works, or if that bound or ``mu`` is
+    not finite (a Hessian that overflowed: no shift is defined)."""
+    limit = 1e12 * system.diag_scale
+    if not (np.isfinite(mu) and np.isfinite(limit)):
+        return None
     ok, inertia = system.factor(mu, approximate)
     if mu > 0.0:
         inertia0, indefinite = None, not (ok and inertia in (0, None))
@@ -47,7 +51,7 @@ def factor_positive(system, mu: float, escape_saddles: bool, approximate: bool =
     if ok and (not escape_saddles or inertia in (0, None)):
         return mu, inertia0, indefinite
     mu = 4.0 * mu if mu > 0.0 else 1e-4 * system.diag_scale
-    while mu <= 1e12 * system.diag_scale:
+    while mu <= limit:
         ok, inertia = system.factor(mu, approximate)
         if ok and (not escape_saddles or inertia in (0, None)):
             return mu, inertia0, indefinite

@@ -50,7 +50,10 @@ Smooth starts
 -------------
 A start closer than ``relax_rough_min_move`` mean edge lengths (rms) to ``precondition_at`` is
 not relaxed: its first steps are quasi-Newton steps on the unshifted Hessian at
-``precondition_at`` (:func:`~.relax.exact_preconditioner`).
+``precondition_at`` (:func:`~.relax.exact_preconditioner`). With ``smooth_start=False`` it is
+relaxed all the same: near an instability the unshifted Hessian has a soft mode, and its
+quasi-Newton steps amplify a start's small component along it into a long step that can carry
+the shell over a barrier the relaxation (a shifted, gradient-flow-like descent) stays behind.
 
 Single-precision steps
 ----------------------
@@ -327,7 +330,7 @@ def _start(m: Minimization, X, precondition_at, precondition_token, tokens) -> N
     certify_single = o.certify_single and single_ok
     system.token = next((t for t in tokens if system.workspace.holds(t, system.kkt)), None)
     warm = system.token is not None
-    if (precondition_at is not None and not warm
+    if (precondition_at is not None and not warm and o.smooth_start
             and smooth_start(m.volume, X, precondition_at, o.relax_rough_min_move)):
         system.token = exact_preconditioner(system, precondition_at, precondition_token,
                                             certify_single)

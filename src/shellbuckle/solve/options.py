@@ -20,7 +20,7 @@ _INTEGERS = ("max_iter", "inverse_iterations", "refine_iterations", "max_quasi",
              "jam_steps", "single_jam_steps", "relax_rough_full", "relax_window", "relax_memory",
              "relax_ask_steps")
 _FLAGS = ("project_rigid", "escape_saddles", "compute_inertia", "certify", "certify_single",
-          "single_precision_steps", "history", "relax_scaling")
+          "single_precision_steps", "history", "relax_scaling", "smooth_start")
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,8 @@ class NewtonOptions:
         end the rough stage; ``relax_rough_max_move``, ``relax_rough_min_move``: the rough
         stage runs only for a start between these many mean edge lengths (rms) from the
         relaxed state, and a start closer than the minimum is not relaxed at all (a smooth
-        start); ``relax_tol``, ``relax_window``: the relaxation stops when the energy falls by
+        start) where ``smooth_start`` is on (off: it is relaxed, without the rough stage; the
+        protocol turns it off for a start that carries an imperfection); ``relax_tol``, ``relax_window``: the relaxation stops when the energy falls by
         less than ``relax_tol |E|`` over ``relax_window`` steps; ``relax_memory``: its secant
         pairs; ``relax_scaling``: scale its initial inverse Hessian by the line searches'
         estimate after the rough stage; ``relax_ask_steps``, ``relax_ask_alpha``: after that
@@ -111,6 +112,7 @@ class NewtonOptions:
     relax_rough_full: int = 3
     relax_rough_max_move: float = 1.5
     relax_rough_min_move: float = 0.3
+    smooth_start: bool = True
     relax_tol: float = 1e-5
     relax_window: int = 5
     relax_memory: int = 20
