@@ -18,9 +18,10 @@ sizes named in ``--whole``. One thread unless ``--threads``.
 Printed: one line per step with ``--per-step``; then per size the steps before buckling (before
 the first pressure drop) and after, with the mean wall time per step, KKT factorizations per
 step and minimizer iterations per step (Newton and quasi-Newton steps of the step's three
-minimizations) in each part, the mean ``move`` of a step after buckling (the largest vertex
-displacement from the step's start to its end, in mean edge lengths of the mesh: how far the dent
-travels over the mesh in one step), the whole-run time where a whole run was made, the peak
+minimizations) in each part (the part after buckling includes the buckling step), the mean
+``move`` of a step after the buckling step (the largest vertex displacement from the step's start
+to its end, in mean edge lengths of the mesh: how far the dent travels over the mesh in one
+step), the whole-run time where a whole run was made, the peak
 resident memory of the process, and the growth exponent of the time per step before buckling between
 successive sizes and over the whole range (a least-squares fit of log t = a + b log N).
 The first lines name the machine and time a fixed piece of work on it
@@ -138,7 +139,7 @@ def table(results: list) -> list[str]:
                      f"{_fmt(_mean(post, 'factorizations'), '9.1f')} "
                      f"{_fmt(_mean(pre, 'iterations'), '6.0f')} "
                      f"{_fmt(_mean(post, 'iterations'), '7.0f')} "
-                     f"{_fmt(_mean(post, 'move') if 'move' in r['rows'][0] else math.nan, '9.1f')} "
+                     f"{_fmt(_mean(post[1:], 'move'), '9.1f')} "
                      f"{_fmt(r['total_s'] if r['whole'] else math.nan, '8.1f')} "
                      f"{r['peak_mb']:8.0f} {_fmt(exponent, '8.2f')}")
         previous = (r["vertices"], t_pre)

@@ -8,9 +8,9 @@ Run from the repository root:
 The paper's protocol (helfrich reading, gamma 2333 by default, the refinement study's smooth
 imperfection: 0.00976 R rms, degrees 2-20, seed 0) is run to step ``--step - 1`` (the shell
 buckles at step 4, dV/V = 0.076), then the first minimization of step ``--step`` (from the
-jiggled start, as the protocol makes it) is made again with every Newton step's point kept
-(through Newton's ``abandon`` hook, which is asked after every Newton step and here never
-stops). Printed per mesh: the minimization's Newton steps (factorizations) and iterations (the
+jiggled start, relaxed as the protocol relaxes it) is made again with every Newton step's
+point kept (through Newton's ``abandon`` hook, which is asked after every Newton step and here
+never stops). Printed per mesh: the minimization's Newton steps (factorizations) and iterations (the
 quasi-Newton and relaxation steps between them included), how far its end lies from its start
 (largest vertex displacement, in mean edge lengths ``h`` of the mesh) and how far the dent's
 axis turned (its angle times R, in ``h``); then, for points along the way, their energy above
@@ -85,6 +85,7 @@ def probe(n: int, gamma: float, k: int, seed: int, smooth: float) -> list[str]:
                       tol=protocol.tol, max_iter=protocol.max_iter, workspace=ctx.workspace,
                       pinned=ctx.pinned, precondition_at=state.X,
                       precondition_token=ctx.workspace.kept, relax_rough_shift=0.0,
+                      smooth_start=False, certify_single=state.certify_single,
                       abandon=keep, history=True)
     E_min, X_min = result.fun, result.x
     turned = np.arccos(np.clip(dent_axis(state.X) @ dent_axis(X_min), -1.0, 1.0)) * params.R
@@ -95,7 +96,7 @@ def probe(n: int, gamma: float, k: int, seed: int, smooth: float) -> list[str]:
              f"end {max_displacement(X_min - state.X) / h:.1f} h from the step's start, "
              f"dent axis turned by {turned / h:.1f} h (h = {h:.4f} R)",
              f"  {'Newton step':>11} {'E - E_min':>10} {'distance/h':>10} {'chord':>8}"]
-    for j in sorted({round(x) for x in np.linspace(0, len(kept) - 1, 6)}):
+    for j in sorted({round(x) for x in np.linspace(0, len(kept) - 1, 6)} if kept else ()):
         X = kept[j]
         gap = ctx.energy.value(X) - E_min
         if not gap > 0:

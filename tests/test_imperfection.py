@@ -353,3 +353,32 @@ def test_an_imperfection_smaller_than_the_smooth_start_distance_is_still_relaxed
     assert relaxed.success and smooth.success and relaxed.inertia == smooth.inertia == 0
     assert relaxed.fun == pytest.approx(smooth.fun, rel=1e-10)
     assert np.abs(remove_rigid(smooth.x, relaxed.x - smooth.x)).max() <= 1e-8
+
+
+@pytest.mark.parametrize("temperature, stored_before, relaxed", [
+    (0.01, False, True),   # a jiggle of 0.07 mean edges: relaxed all the same
+    (0.0, False, False),   # no jiggle: the smooth start on the last minimum's Hessian
+    (0.01, True, False),   # a run stored before the option keeps the path it was made with
+])
+def test_the_step_relaxes_a_jiggled_start_when_its_protocol_says_so(monkeypatch, temperature,
+                                                                    stored_before, relaxed):
+    protocol = Protocol.paper(until=0.019, seed=0, temperature=temperature)
+    if stored_before:
+        data = protocol.to_dict()
+        del data["relax_imperfection"]
+        protocol = Protocol.from_dict(data)
+        assert protocol.relax_imperfection is False
+    ctx, state = P.init(icosphere(8), ShellParameters.from_gamma(271, nu=1 / 3), protocol,
+                        threads=1)
+    seen = []
+    inner = P.minimize
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs)
+        return inner(*args, **kwargs)
+
+    monkeypatch.setattr(P, "minimize", spy)
+    state, record = P.step(ctx, state)
+    assert record["converged"]
+    assert (seen[0].get("smooth_start") is False) == relaxed
+    assert all("smooth_start" not in kwargs for kwargs in seen[1:])  # the c0 cycle

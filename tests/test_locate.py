@@ -82,12 +82,13 @@ def test_primary_buckling_is_located_within_tol_between_crossing_and_classical(r
     assert p["old"]["lowest_eigenvalue"] > 0 and p["old"]["inertia"] == 0
 
 
-def test_the_mechanism_agrees_with_the_sphere_branch_followed_without_jiggle(runs):
-    """On this mesh the sphere branch ends (its lowest eigenvalue falls to zero) 0.002-0.005
-    after the located point: the step made without any jiggle (no help over a barrier) keeps
-    the sphere at the located bracket's upper end and at 0.194, and loses it at 0.197, within
-    one step after the bracket. The jiggled step buckles where the sphere is still a proper
-    minimum: a barrier crossing, which is what the eigenvalue's extrapolation says too."""
+def test_the_located_point_lies_on_the_sphere_branch_just_before_its_end(runs):
+    """On this mesh the sphere branch ends 0.002-0.005 after the located point: the step made
+    without any jiggle (no help over a barrier) keeps the sphere at the located bracket's upper
+    end and at 0.194, and loses it at 0.197, within one step after the bracket. The jiggled
+    step buckles where the sphere is still a proper minimum. (The mechanism's label, a
+    two-point extrapolation of the lowest eigenvalue, is not asserted: near a fold the
+    eigenvalue falls like a square root, docs/analysis.md.)"""
     from shellbuckle.locate import StepFromStored
 
     _, run = runs
@@ -105,10 +106,8 @@ def test_the_mechanism_agrees_with_the_sphere_branch_followed_without_jiggle(run
     # where the branch ends, 0.002-0.005 after the located point (docs/analysis.md)
     assert shape_without_jiggle(0.194) == "sphere"
     assert shape_without_jiggle(0.197) != "sphere"
-    assert p["hi"] < 0.194
+    assert p["hi"] < 0.194 < 0.197 < p["lo"] + step
     assert p["old"]["lowest_eigenvalue"] > 0
-    assert p["mechanism"] == "barrier crossing"
-    assert p["eigenvalue_zero_at"] is None or p["eigenvalue_zero_at"] > p["lo"] + step
 
 
 def test_located_point_lies_on_the_old_branch(runs):

@@ -65,3 +65,22 @@ def test_the_shift_search_stops_at_the_first_shift_that_makes_the_tangent_hessia
     assert eig[0] + mu > 0 and eig[0] + mu / 4.0 < 0
     # without saddle escape the unshifted factorization is taken as it is
     assert factor_positive(system, 0.0, escape_saddles=False) == (0.0, inertia, True)
+
+
+def test_no_shift_is_searched_for_an_overflowed_hessian():
+    # a Hessian whose mean diagonal overflowed (gamma = 1e300) has no finite shift bound:
+    # the search gives up at once (it used to raise an infinite shift forever: inf <= inf),
+    # and the minimization ends with its reason instead of hanging. Oracle: the same system
+    # with a finite diagonal finds its shift
+    mesh, energy, volume, V0 = shell(3, 1000)
+    X = 0.7 ** (1 / 3) * mesh.X
+    system = KKTSystem(energy, volume, 0.7 * V0, Workspace("qdldl"), X, NewtonOptions(), None,
+                       np.random.default_rng(0))
+    lam, _, _, gV = system.gradients(X)
+    system.assemble(X, lam, gV)
+    assert factor_positive(system, 0.0, escape_saddles=True) is not None
+    system.diag_scale = np.inf
+    assert factor_positive(system, 0.0, escape_saddles=True) is None
+    assert factor_positive(system, np.inf, escape_saddles=True) is None
+    system.diag_scale = 1.0
+    assert factor_positive(system, np.nan, escape_saddles=True) is None

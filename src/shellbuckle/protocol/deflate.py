@@ -157,7 +157,10 @@ class Protocol:
     minimization back at the step's c0 after the zero-curvature cycle starts at the minimum
     before the cycle when the energy falls all along the straight path there from the flat
     minimum (:func:`downhill_path`; else it starts at the flat minimum); runs stored before
-    this option existed resume without it.
+    this option existed resume without it. ``relax_imperfection``: a jiggled start is relaxed
+    however small the jiggle is against the mesh (:func:`_minimize`); runs stored before this
+    option existed resume without it (a start closer than 0.3 mean edges to the step's start
+    then takes quasi-Newton steps on the Hessian there, as they were made).
     """
 
     schedule: tuple
@@ -177,6 +180,7 @@ class Protocol:
     direct_return: bool = True
     smooth_jiggle: float | None = None
     smooth_degree: int | None = None
+    relax_imperfection: bool = True
 
     def __post_init__(self):
         if self.control not in CONTROLS:
@@ -270,6 +274,7 @@ class Protocol:
             data.setdefault("jiggle", 0.01)
         data.setdefault("prerelax", False)  # stored before the preconditioned relaxation
         data.setdefault("direct_return", False)  # stored before the direct return of the cycle
+        data.setdefault("relax_imperfection", False)  # stored before jiggled starts were relaxed
         return cls(**data)
 
     def jiggle_sigma(self, X_reference: np.ndarray, X: np.ndarray, edges: np.ndarray) -> float:
@@ -463,12 +468,12 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     the factorization the minimization that ended at ``relaxed`` ended with (Newton's
     ``precondition_token``, for a start without a jiggle); ``certify_single``, Newton's option
     (:attr:`State.certify_single`); ``jiggled``: ``X`` is ``relaxed`` plus the step's
-    imperfection, ``imperfect``: one of nonzero size. A start with an imperfection is always
-    relaxed (Newton's ``smooth_start=False``), however small it is against the mesh, so that
-    every mesh takes the same path from it (the shifted relaxation of
-    :mod:`shellbuckle.solve.relax`) and the outcome of a step near an instability (sphere or
-    dent) does not switch with the imperfection's size in mesh units (:mod:`shellbuckle.solve.
-    newton`, "Smooth starts")."""
+    imperfection, ``imperfect``: one of nonzero size. With the protocol's
+    ``relax_imperfection`` a start with an imperfection is always relaxed (Newton's
+    ``smooth_start=False``), however small it is against the mesh, so that every mesh takes
+    the same path from it (the shifted relaxation of :mod:`shellbuckle.solve.relax`) and the
+    outcome of a step near an instability (sphere or dent) does not switch with the
+    imperfection's size in mesh units (:mod:`shellbuckle.solve.newton`, "Smooth starts")."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -491,7 +496,7 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                 # a smooth imperfection has no mesh-scale roughness for the relaxation's
                 # rough stage to damp (:mod:`shellbuckle.solve.relax`): skipped
                 options["relax_rough_shift"] = 0.0
-            if imperfect:
+            if imperfect and p.relax_imperfection:
                 options["smooth_start"] = False
         tokens = [w.factorization for w in warm or () if w.factorization is not None]
         if p.prerelax and tokens:

@@ -73,9 +73,10 @@ class NewtonOptions:
         end the rough stage; ``relax_rough_max_move``, ``relax_rough_min_move``: the rough
         stage runs only for a start between these many mean edge lengths (rms) from the
         relaxed state, and a start closer than the minimum is not relaxed at all (a smooth
-        start) where ``smooth_start`` is on (off: it is relaxed, without the rough stage; the
-        protocol turns it off for a start that carries an imperfection); ``relax_tol``, ``relax_window``: the relaxation stops when the energy falls by
-        less than ``relax_tol |E|`` over ``relax_window`` steps; ``relax_memory``: its secant
+        start) where ``smooth_start`` is on (off: it is relaxed, without the rough stage;
+        the protocol turns it off for a start with an imperfection); ``relax_tol``,
+        ``relax_window``: the relaxation stops when the energy falls by less than
+        ``relax_tol |E|`` over ``relax_window`` steps; ``relax_memory``: its secant
         pairs; ``relax_scaling``: scale its initial inverse Hessian by the line searches'
         estimate after the rough stage; ``relax_ask_steps``, ``relax_ask_alpha``: after that
         many consecutive steps cut below that fraction of their length, ``abandon`` is asked.

@@ -23,10 +23,12 @@ step ``tau`` is multiplied by the minimizer of the parabola through the energy, 
 the accepted point along the step (:func:`rescaled`), so the steps are taken in full.
 
 A start closer than ``relax_rough_min_move`` to ``X_ref`` (no jiggle, or a small one) has
-nothing rough to remove (:func:`smooth_start`): its first steps are quasi-Newton steps whose
-``H0`` is the unshifted Hessian of the Lagrangian at ``X_ref`` (:func:`exact_preconditioner`),
-the factorization that certified that minimum if the solver still holds it, else the same
-matrix factored again (the same bits, so a resumed run repeats an uninterrupted one).
+nothing rough to remove (:func:`smooth_start`): unless Newton's ``smooth_start`` is off (the
+protocol turns it off for a start with a jiggle, however small), its first steps are
+quasi-Newton steps whose ``H0`` is the unshifted Hessian of the Lagrangian at ``X_ref``
+(:func:`exact_preconditioner`), the factorization that certified that minimum if the solver
+still holds it, else the same matrix factored again (the same bits, so a resumed run repeats
+an uninterrupted one); with it off, such a start is relaxed, without the rough stage.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ def move(volume, X: np.ndarray, X_ref: np.ndarray) -> float:
 
 def smooth_start(volume, X: np.ndarray, X_ref: np.ndarray, min_move: float) -> bool:
     """Whether ``X`` lies closer to ``X_ref`` than ``min_move`` mean edge lengths (rms,
-    :func:`move`): such a start is not relaxed at all."""
+    :func:`move`): such a start is not relaxed at all where Newton's ``smooth_start`` is on."""
     return move(volume, X, X_ref) < min_move
 
 
