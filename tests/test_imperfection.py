@@ -305,7 +305,8 @@ def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
     for rough in (None, 1.0):
         factored.clear()
         if rough is None:
-            res = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True)
+            res = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X,
+                              jiggle=protocol.smooth_jiggle)
         else:
             res = minimize(ctx.energy, ctx.volume, X, V, tol=protocol.tol, workspace=ctx.workspace,
                            pinned=ctx.pinned, precondition_at=state.X, relax_rough_shift=rough)
@@ -339,9 +340,9 @@ def test_an_imperfection_smaller_than_the_smooth_start_distance_is_still_relaxed
         return inner(*args, **kwargs, history=True)
 
     monkeypatch.setattr(P, "minimize", spy)
-    step = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True, imperfect=True)
+    step = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggle=protocol.smooth_jiggle)
     assert seen[-1]["smooth_start"] is False
-    P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggled=True)  # no imperfection
+    P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggle=0.0)  # no imperfection
     assert "smooth_start" not in seen[-1]
     monkeypatch.undo()
     common = dict(tol=protocol.tol, workspace=ctx.workspace, pinned=ctx.pinned,

@@ -119,7 +119,7 @@ def test_a_step_that_does_not_converge_is_jiggled_again_with_half_the_amplitude(
     rng = np.random.default_rng([4, 1, 1])
     X = jiggle(s2.X, sigma0 / 2, rng)
     V = ctx2.V0 * (1 - 0.019)
-    r = minimize(ctx2, ctx2.energy, X, V, relaxed=s2.X, jiggled=True, imperfect=True)
+    r = minimize(ctx2, ctx2.energy, X, V, relaxed=s2.X, jiggle=sigma0 / 2)
     r = minimize(ctx2, ctx2.energy.with_c0(0.0), r.x, V, relaxed=r.x)
     r = minimize(ctx2, ctx2.energy, r.x, V, relaxed=r.x)
     assert np.allclose(r.x, state.X, atol=1e-12)

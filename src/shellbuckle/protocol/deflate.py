@@ -456,7 +456,7 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
 
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
               certify: bool = True, relaxed_token=None, certify_single: bool = True,
-              jiggled: bool = False, imperfect: bool = False):
+              jiggle: float | None = None):
     """One minimization of the protocol; ``relaxed`` is the relaxed state the start ``X`` came
     from (before the jiggle, or at the previous c0), which preconditions the first
     iterations of Newton's method when the protocol's ``prerelax`` is on; ``warm``, results of
@@ -467,13 +467,14 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     c0 = 0 stage of the cycle, whose minimum is neither reported nor kept); ``relaxed_token``,
     the factorization the minimization that ended at ``relaxed`` ended with (Newton's
     ``precondition_token``, for a start without a jiggle); ``certify_single``, Newton's option
-    (:attr:`State.certify_single`); ``jiggled``: ``X`` is ``relaxed`` plus the step's
-    imperfection, ``imperfect``: one of nonzero size. With the protocol's
-    ``relax_imperfection`` a start with an imperfection is always relaxed (Newton's
-    ``smooth_start=False``), however small it is against the mesh, so that every mesh takes
-    the same path from it (the shifted relaxation of :mod:`shellbuckle.solve.relax`) and the
-    outcome of a step near an instability (sphere or dent) does not switch with the
-    imperfection's size in mesh units (:mod:`shellbuckle.solve.newton`, "Smooth starts")."""
+    (:attr:`State.certify_single`); ``jiggle``: ``X`` is ``relaxed`` plus the step's
+    imperfection, of this size (:meth:`Protocol.jiggle_sigma`; ``None``: ``X`` is no jiggled
+    start). With the protocol's ``relax_imperfection`` a start with an imperfection of nonzero
+    size is always relaxed (Newton's ``smooth_start=False``), however small it is against the
+    mesh, so that every mesh takes the same path from it (the shifted relaxation of
+    :mod:`shellbuckle.solve.relax`) and the outcome of a step near an instability (sphere or
+    dent) does not switch with the imperfection's size in mesh units
+    (:mod:`shellbuckle.solve.newton`, "Smooth starts")."""
     p = ctx.protocol
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
@@ -492,11 +493,11 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
         if p.prerelax and relaxed is not None:
             options["precondition_at"] = relaxed
             options["precondition_token"] = relaxed_token
-            if jiggled and p.smooth_jiggle is not None:
+            if jiggle is not None and p.smooth_jiggle is not None:
                 # a smooth imperfection has no mesh-scale roughness for the relaxation's
                 # rough stage to damp (:mod:`shellbuckle.solve.relax`): skipped
                 options["relax_rough_shift"] = 0.0
-            if imperfect and p.relax_imperfection:
+            if jiggle is not None and jiggle > 0 and p.relax_imperfection:
                 options["smooth_start"] = False
         tokens = [w.factorization for w in warm or () if w.factorization is not None]
         if p.prerelax and tokens:
@@ -740,8 +741,7 @@ def step(ctx: Context, state: State):
         X = _jiggled(ctx, state.X, sigma, rng)
         result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
                            relaxed_token=ctx.workspace.kept,
-                           certify_single=state.certify_single, jiggled=True,
-                           imperfect=sigma > 0)
+                           certify_single=state.certify_single, jiggle=sigma)
         _check_domain(ctx, k, result)
         iterations += result.nit
         E_before = result.fun
