@@ -320,6 +320,19 @@ def test_a_smooth_imperfection_is_relaxed_without_the_rough_stage(monkeypatch):
     assert counts[0] < counts[1]
 
 
+def _spy_on_minimize(monkeypatch, **extra) -> list:
+    """The keyword arguments of every minimization the protocol starts from now on (run with
+    ``extra`` added), in a list."""
+    seen, inner = [], P.minimize
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs)
+        return inner(*args, **kwargs, **extra)
+
+    monkeypatch.setattr(P, "minimize", spy)
+    return seen
+
+
 def test_an_imperfection_smaller_than_the_smooth_start_distance_is_still_relaxed(monkeypatch):
     # a start closer than relax_rough_min_move edges to the last minimum takes quasi-Newton
     # steps on the unshifted Hessian there, unless it carries an imperfection: then every
@@ -332,14 +345,7 @@ def test_an_imperfection_smaller_than_the_smooth_start_distance_is_still_relaxed
     X = P._jiggled(ctx, state.X, protocol.smooth_jiggle, step_rng(0, 1))
     V = ctx.V0 * (1.0 - protocol.schedule[0])
     assert move(ctx.volume, X, state.X) < 0.3  # below the smooth-start distance
-    seen = []
-    inner = P.minimize
-
-    def spy(*args, **kwargs):
-        seen.append(kwargs)
-        return inner(*args, **kwargs, history=True)
-
-    monkeypatch.setattr(P, "minimize", spy)
+    seen = _spy_on_minimize(monkeypatch, history=True)
     step = P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggle=protocol.smooth_jiggle)
     assert seen[-1]["smooth_start"] is False
     P._minimize(ctx, ctx.energy, X, V, relaxed=state.X, jiggle=0.0)  # no imperfection
@@ -371,14 +377,7 @@ def test_the_step_relaxes_a_jiggled_start_when_its_protocol_says_so(monkeypatch,
         assert protocol.relax_imperfection is False
     ctx, state = P.init(icosphere(8), ShellParameters.from_gamma(271, nu=1 / 3), protocol,
                         threads=1)
-    seen = []
-    inner = P.minimize
-
-    def spy(*args, **kwargs):
-        seen.append(kwargs)
-        return inner(*args, **kwargs)
-
-    monkeypatch.setattr(P, "minimize", spy)
+    seen = _spy_on_minimize(monkeypatch)
     state, record = P.step(ctx, state)
     assert record["converged"]
     assert (seen[0].get("smooth_start") is False) == relaxed

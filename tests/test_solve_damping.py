@@ -46,17 +46,24 @@ def _tangent_eigenvalues(energy, volume, X, pinned):
     return np.linalg.eigvalsh(Z.T @ K @ Z)
 
 
-def test_the_shift_search_stops_at_the_first_shift_that_makes_the_tangent_hessian_definite():
-    # the uniformly shrunk sphere far past its buckling threshold (gamma = 1000, dV/V = 0.3).
-    # Oracle: the dense tangent Hessian. The unshifted factorization shows its negative
-    # eigenvalues; the shift found is 1e-4 mean|diag K| times a power of 4 that makes it
-    # positive definite, a quarter of it does not
+def _shrunk_far_past_buckling():
+    """``(energy, volume, X, system)``: the uniformly shrunk sphere far past its buckling
+    threshold (gamma = 1000, dV/V = 0.3), its KKT matrix assembled at ``X``."""
     mesh, energy, volume, V0 = shell(3, 1000)
     X = 0.7 ** (1 / 3) * mesh.X
     system = KKTSystem(energy, volume, 0.7 * V0, Workspace("qdldl"), X, NewtonOptions(), None,
                        np.random.default_rng(0))
     lam, _, _, gV = system.gradients(X)
     system.assemble(X, lam, gV)
+    return energy, volume, X, system
+
+
+def test_the_shift_search_stops_at_the_first_shift_that_makes_the_tangent_hessian_definite():
+    # the uniformly shrunk sphere far past its buckling threshold (gamma = 1000, dV/V = 0.3).
+    # Oracle: the dense tangent Hessian. The unshifted factorization shows its negative
+    # eigenvalues; the shift found is 1e-4 mean|diag K| times a power of 4 that makes it
+    # positive definite, a quarter of it does not
+    energy, volume, X, system = _shrunk_far_past_buckling()
     eig = _tangent_eigenvalues(energy, volume, X, system.pinned)
     mu, inertia, indefinite = factor_positive(system, 0.0, escape_saddles=True)
     assert indefinite and inertia == int((eig < 0).sum()) > 0
@@ -72,12 +79,7 @@ def test_no_shift_is_searched_for_an_overflowed_hessian():
     # the search gives up at once (it used to raise an infinite shift forever: inf <= inf),
     # and the minimization ends with its reason instead of hanging. Oracle: the same system
     # with a finite diagonal finds its shift
-    mesh, energy, volume, V0 = shell(3, 1000)
-    X = 0.7 ** (1 / 3) * mesh.X
-    system = KKTSystem(energy, volume, 0.7 * V0, Workspace("qdldl"), X, NewtonOptions(), None,
-                       np.random.default_rng(0))
-    lam, _, _, gV = system.gradients(X)
-    system.assemble(X, lam, gV)
+    system = _shrunk_far_past_buckling()[3]
     assert factor_positive(system, 0.0, escape_saddles=True) is not None
     system.diag_scale = np.inf
     assert factor_positive(system, 0.0, escape_saddles=True) is None
