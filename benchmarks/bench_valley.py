@@ -8,10 +8,11 @@ Run from the repository root:
 The paper's protocol (helfrich reading, gamma 2333 by default, the refinement study's smooth
 imperfection: 0.00976 R rms, degrees 2-20, seed 0) is run to step ``--step - 1`` (the shell
 buckles at step 4, dV/V = 0.076), then the first minimization of step ``--step`` (from the
-jiggled start, relaxed as the protocol relaxes it) is made again with every Newton step's
-point kept (through Newton's ``abandon`` hook, which is asked after every Newton step and here
-never stops). Printed per mesh: the minimization's Newton steps (factorizations) and iterations (the
-quasi-Newton and relaxation steps between them included), how far its end lies from its start
+jiggled start, by the protocol's own minimization) is made again, keeping every point where
+Newton's method asks the protocol's fold test (``abandon``: after the relaxation and after
+every Newton step short of convergence; the test never stops it here). Printed per mesh: the
+points kept, the minimization's iterations (relaxation, quasi-Newton and Newton steps), how
+far its end lies from its start
 (largest vertex displacement, in mean edge lengths ``h`` of the mesh) and how far the dent's
 axis turned (its angle times R, in ``h``); then, for points along the way, their energy above
 the minimum ``E - E_min``, their distance to it (largest vertex displacement, in ``h``), and
@@ -42,9 +43,8 @@ from shellbuckle.params import ShellParameters  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.protocol.deflate import Protocol  # noqa: E402
 from shellbuckle.protocol.jiggle import step_rng  # noqa: E402
-from shellbuckle.solve import minimize  # noqa: E402
-from shellbuckle.solve.linesearch import (max_displacement, mean_edge_length,  # noqa: E402
-                                          restore_volume)
+from shellbuckle.solve.linesearch import (RestoredPath, max_displacement,  # noqa: E402
+                                          mean_edge_length)
 
 
 def dent_axis(X: np.ndarray) -> np.ndarray:
@@ -58,11 +58,8 @@ def dent_axis(X: np.ndarray) -> np.ndarray:
 
 def chord_peak(ctx, X0: np.ndarray, X1: np.ndarray, V_target: float, points: int = 41) -> float:
     """The highest energy on the straight line from ``X0`` to ``X1``, the volume restored."""
-    peak = -np.inf
-    for t in np.linspace(0.0, 1.0, points):
-        X, _ = restore_volume(ctx.volume, X0 + t * (X1 - X0), V_target)
-        peak = max(peak, ctx.energy.value(X))
-    return peak
+    path = RestoredPath(ctx.energy, ctx.volume, X0, X1 - X0, V_target)
+    return max(path(t)[0] for t in np.linspace(0.0, 1.0, points))
 
 
 def probe(n: int, gamma: float, k: int, seed: int, smooth: float) -> list[str]:
@@ -76,26 +73,34 @@ def probe(n: int, gamma: float, k: int, seed: int, smooth: float) -> list[str]:
     V_target = ctx.V0 * (1.0 - protocol.schedule[k - 1])
     sigma = protocol.jiggle_sigma(mesh.X, state.X, mesh.topology.edges)
     start = protocol_mod._jiggled(ctx, state.X, sigma, step_rng(seed, k))
-    kept = []
+    kept, inner = [], protocol_mod.minimize
 
-    def keep(X):
-        kept.append(np.array(X))
+    def keeping(*args, abandon, abandon_thorough, **kwargs):
+        def asking(test):
+            def ask(X):  # the protocol's own test, after keeping the point
+                kept.append(np.array(X))
+                return test(X)
+            return ask
 
-    result = minimize(ctx.energy, ctx.volume, start, V_target, method="newton",
-                      tol=protocol.tol, max_iter=protocol.max_iter, workspace=ctx.workspace,
-                      pinned=ctx.pinned, precondition_at=state.X,
-                      precondition_token=ctx.workspace.kept, relax_rough_shift=0.0,
-                      smooth_start=False, certify_single=state.certify_single,
-                      abandon=keep, history=True)
+        return inner(*args, abandon=asking(abandon), abandon_thorough=asking(abandon_thorough),
+                     history=True, **kwargs)
+
+    protocol_mod.minimize = keeping  # the protocol's first minimization of the step, as it is
+    try:
+        result = protocol_mod._minimize(ctx, ctx.energy, start, V_target, relaxed=state.X,
+                                        relaxed_token=ctx.workspace.kept,
+                                        certify_single=state.certify_single, jiggle=sigma)
+    finally:
+        protocol_mod.minimize = inner
     E_min, X_min = result.fun, result.x
     turned = np.arccos(np.clip(dent_axis(state.X) @ dent_axis(X_min), -1.0, 1.0)) * params.R
     kinds = [r["step"] for r in result.history]
     lines = [f"{mesh.n_vertices} vertices, step {k} (dV/V = {protocol.schedule[k - 1]:.3f}): "
-             f"{result.message}; {len(kept)} Newton steps, {result.nit} iterations "
+             f"{result.message}; {len(kept)} points kept, {result.nit} iterations "
              f"({kinds.count('relax')} relaxation, {kinds.count('quasi-newton')} quasi-Newton); "
              f"end {max_displacement(X_min - state.X) / h:.1f} h from the step's start, "
              f"dent axis turned by {turned / h:.1f} h (h = {h:.4f} R)",
-             f"  {'Newton step':>11} {'E - E_min':>10} {'distance/h':>10} {'chord':>8}"]
+             f"  {'point':>11} {'E - E_min':>10} {'distance/h':>10} {'chord':>8}"]
     for j in sorted({round(x) for x in np.linspace(0, len(kept) - 1, 6)} if kept else ()):
         X = kept[j]
         gap = ctx.energy.value(X) - E_min
