@@ -22,7 +22,8 @@ minimizations) in each part (the part after buckling includes the buckling step)
 ``move`` of a step after the buckling step (the largest vertex displacement from the step's
 start to its end, in mean edge lengths of the mesh: how far the dent travels over the mesh in
 one step), the whole-run time where a whole run was made, the peak resident memory of the
-process, and the growth exponent of the time per step before buckling between successive sizes and over the whole range (a least-squares fit of log t = a + b log N).
+process, and the growth exponent of the time per step before buckling between successive sizes
+and over the whole range (a least-squares fit of log t = a + b log N).
 The first lines name the machine and time a fixed piece of work on it
 (``benchmarks/machine.py``); compare numbers only together with that line.
 """
