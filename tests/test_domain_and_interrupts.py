@@ -186,18 +186,20 @@ def warm(tmp_path_factory):
     return Run.open(out)
 
 
-def _signal_run(out, signum: int, delay: float, schedule=LONG):
+def _signal_run(out, signum: int, delay: float, schedule=LONG, after_step: int | None = None):
     """Start ``shellbuckle deflate`` into ``out``, send ``signum`` ``delay`` seconds after its
-    run folder appears; returns (exit code, stderr)."""
+    run folder appears (or, with ``after_step``, after that step is stored: a point within the
+    steps however fast the machine); returns (exit code, stderr)."""
     child = subprocess.Popen(
         _command() + CLI_RUN + schedule + ["--out", str(out)], stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True,
         # a child of a shell in the background may inherit SIGINT ignored
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # noqa: PLW1509
     deadline = time.monotonic() + 120
-    while not (out / "run.json").exists():
+    waited = out / ("run.json" if after_step is None else f"steps/step_{after_step:06d}.h5")
+    while not waited.exists():
         assert child.poll() is None, child.communicate()
-        assert time.monotonic() < deadline, "the run folder never appeared"
+        assert time.monotonic() < deadline, f"{waited} never appeared"
         time.sleep(0.005)
     time.sleep(delay)
     child.send_signal(signum)
@@ -242,7 +244,7 @@ def test_sigterm_at_a_random_moment_ends_as_interrupted(tmp_path, warm, trial):
 
 def test_a_run_interrupted_by_sigterm_resumes_to_the_uninterrupted_table(tmp_path, warm):
     out = tmp_path / "run"
-    code, err = _signal_run(out, signal.SIGTERM, 0.6, schedule=SHORT)
+    code, err = _signal_run(out, signal.SIGTERM, 0.0, schedule=SHORT, after_step=1)
     _assert_interrupted(out, code, err, 143)
     assert main(["resume", str(out), "--threads", "1", "--quiet", "--no-plot"]) == 0
     done = Run.open(out)
