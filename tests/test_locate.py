@@ -14,7 +14,8 @@ from shellbuckle import theory
 from shellbuckle.analysis.collect import collect_runs, threshold_points
 from shellbuckle.analysis.events import events, thresholds
 from shellbuckle.cli import main
-from shellbuckle.locate import _context, _mechanism, located, locate
+from shellbuckle import locate as locate_mod
+from shellbuckle.locate import _context, _eigenvalue_zero, _old_branch, located, locate
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.protocol import deflate as protocol_mod
@@ -86,9 +87,10 @@ def test_the_located_point_lies_on_the_sphere_branch_just_before_its_end(runs):
     """On this mesh the sphere branch ends 0.002-0.005 after the located point: the step made
     without any jiggle (no help over a barrier) keeps the sphere at the located bracket's upper
     end and at 0.194, and loses it at 0.197, within one step after the bracket. The jiggled
-    step buckles where the sphere is still a proper minimum. (The mechanism's label, a
-    two-point extrapolation of the lowest eigenvalue, is not asserted: near a fold the
-    eigenvalue falls like a square root, docs/analysis.md.)"""
+    step buckles where the sphere is still a proper minimum, 1-3 % before the branch ends: an
+    instability that the jiggle anticipates, which the location finds by following the branch
+    itself (the two-point extrapolation of the lowest eigenvalue puts its zero a step later,
+    near 0.24: near a fold the eigenvalue falls like a square root)."""
     from shellbuckle.locate import StepFromStored
 
     _, run = runs
@@ -108,6 +110,18 @@ def test_the_located_point_lies_on_the_sphere_branch_just_before_its_end(runs):
     assert shape_without_jiggle(0.197) != "sphere"
     assert p["hi"] < 0.194 < 0.197 < p["lo"] + step
     assert p["old"]["lowest_eigenvalue"] > 0
+    # the location's own walk along the branch found its end there, and the steps without
+    # jiggle from the stored start (another path) agree with the bracket it stored
+    branch = p["old_branch"]
+    assert p["mechanism"] == "instability"
+    assert 0.194 - 0.0015 <= branch["end_lo"] < branch["end_hi"] <= 0.197 + 0.0015
+    assert branch["end_hi"] - branch["end_lo"] <= 0.01 * branch["end_hi"]
+    assert shape_without_jiggle(branch["end_lo"]) == "sphere"
+    assert shape_without_jiggle(branch["end_hi"]) != "sphere"
+    middle = 0.5 * (branch["end_lo"] + branch["end_hi"])
+    assert branch["anticipation"] == pytest.approx(1 - p["dV_over_V"] / middle)
+    assert 0.005 < branch["anticipation"] < 0.03
+    assert p["eigenvalue_zero_at"] > p["hi"] + step
 
 
 def test_located_point_lies_on_the_old_branch(runs):
@@ -252,15 +266,67 @@ def test_locate_refuses_bad_tolerances(runs, argv, fragment, capsys):
     assert (run.path / LOCATED_JSON).read_bytes() == before
 
 
-def test_mechanism_extrapolates_the_lowest_eigenvalue_linearly():
-    # lambda falls from 1.0 at 0.10 to 0.2 at 0.18: zero at 0.20, within a step of 0.03
-    kind, zero = _mechanism(0.10, 1.0, 0.18, 0.2, 0.03)
-    assert kind == "instability" and zero == pytest.approx(0.20)
-    kind, zero = _mechanism(0.10, 1.0, 0.18, 0.2, 0.01)
-    assert kind == "barrier crossing" and zero == pytest.approx(0.20)
-    assert _mechanism(0.10, 0.5, 0.18, 0.6, 0.03) == ("barrier crossing", None)
-    assert _mechanism(0.18, 0.5, 0.18, 0.6, 0.03) == ("undetermined", None)
-    assert _mechanism(0.10, 0.5, 0.18, -0.1, 0.03) == ("instability", 0.18)
+def test_eigenvalue_zero_extrapolates_the_lowest_eigenvalue_linearly():
+    # lambda falls from 1.0 at 0.10 to 0.2 at 0.18: zero at 0.20
+    assert _eigenvalue_zero(0.10, 1.0, 0.18, 0.2) == pytest.approx(0.20)
+    assert _eigenvalue_zero(0.10, 0.5, 0.18, 0.6) is None  # rising: no zero ahead
+    assert _eigenvalue_zero(0.18, 0.5, 0.18, 0.6) is None  # one old state only
+    assert _eigenvalue_zero(0.10, 0.5, 0.18, -0.1) == 0.18  # already unstable
+
+
+class _Branch:
+    """A stand-in for the step from a stored state: the old branch (a sphere) ends at
+    ``end``; the conformation is the volume reached. Records each call."""
+
+    def __init__(self, end, leaves_domain_at=None):
+        self.end, self.leaves, self.calls = end, leaves_domain_at, []
+
+    def __call__(self, v, *, jiggle=True, start=None):
+        self.calls.append((v, jiggle, float(start[0][0])))
+        if self.leaves is not None and v >= self.leaves:
+            raise locate_mod.LeftDomain(3, "a test")
+        state = protocol_mod.state_after(3, np.array([v]), {})
+        return state, {"E_total": 1.0, "pressure": 2.0, "converged": True}
+
+
+@pytest.mark.parametrize("end, mechanism", [(0.0149, "barrier crossing"),
+                                            (0.0080, "instability"), (None, "barrier crossing")])
+def test_old_branch_follows_the_branch_without_jiggle_and_brackets_its_end(monkeypatch, end,
+                                                                          mechanism):
+    monkeypatch.setattr(locate_mod, "classify", lambda X, faces: dataclasses.make_dataclass(
+        "C", ["shape"])("sphere" if branch.end is None or X[0] < branch.end else "capsule"))
+    branch = _Branch(end)
+    lo, hi, step, tol = 0.0076, 0.0077, 0.019, 1e-4
+    found = _old_branch(branch, lambda shape: shape != "sphere",
+                        type("R", (), {"faces": None})(), (np.array([lo]), {}), lo, hi, step, tol)
+    assert found["mechanism"] == mechanism
+    # every step without jiggle, each from the furthest state found on the old branch
+    reached = lo
+    for v, jiggle, start in branch.calls:
+        assert jiggle is False and start == reached
+        if end is None or v < end:
+            reached = max(reached, v)
+    assert found["followed_to"] == reached
+    assert len(found["evaluations"]) == len(branch.calls)
+    if end is None:
+        assert found["followed_to"] == pytest.approx(hi + step) and found["end_lo"] is None
+        return
+    assert found["end_lo"] < end <= found["end_hi"]
+    assert found["end_hi"] - found["end_lo"] <= max(tol, 0.01 * found["end_hi"])
+    located_at = 0.5 * (lo + hi)
+    assert found["anticipation"] == pytest.approx(
+        1 - located_at / (0.5 * (found["end_lo"] + found["end_hi"])))
+    assert abs(found["anticipation"] - (1 - located_at / end)) < 0.02
+
+
+def test_old_branch_that_leaves_the_domain_leaves_the_mechanism_undetermined(monkeypatch):
+    monkeypatch.setattr(locate_mod, "classify",
+                        lambda X, faces: dataclasses.make_dataclass("C", ["shape"])("sphere"))
+    found = _old_branch(_Branch(None, leaves_domain_at=0.02), lambda shape: shape != "sphere",
+                        type("R", (), {"faces": None})(), (np.array([0.0076]), {}), 0.0076,
+                        0.0077, 0.019, 1e-4)
+    assert found["mechanism"] == "undetermined" and "left the physical domain" in found["failure"]
+    assert found["followed_to"] == pytest.approx(0.0077 + 0.0095)
 
 
 def test_jump_compares_the_energy_difference_with_the_pressure_work():

@@ -27,16 +27,21 @@ outcome is a function of the volume alone, the threshold of the protocol's own s
 The located threshold is the bracket's middle, with an uncertainty of half its width. Stored
 with it (:mod:`shellbuckle.store.located`) are both ends' energies, pressures and shapes, each
 evaluation, and the lowest eigenvalue of the constrained Hessian (:mod:`shellbuckle.solve.spectrum`)
-at the start of the bracket and at both ends, which tells the mechanism. Where both ends lie on
-one branch (the pressure continuous and the energy difference the pressure's work over the
-bracket, :func:`_jump`) the event is *continuous*: the shape crosses the classifier's line
-(a rim turning concave between its apices, say) without a jump. Otherwise it is an *instability* when
-that eigenvalue on the old branch, extrapolated linearly in volume, reaches zero within the
-original step after the located point (a fold or bifurcation of the branch: Thompson & Hunt,
-*A General Theory of Elastic Stability*, 1973), else a *barrier crossing*: the old branch is
-still a proper minimum and the step's jiggle carries the shell over the energy barrier to a
-lower branch, as in the paper's runs, between the energy crossing of the two branches and the
-classical threshold.
+at the start of the bracket and at both ends. Where both ends lie on one branch (the pressure
+continuous and the energy difference the pressure's work over the bracket, :func:`_jump`) the
+event is *continuous*: the shape crosses the classifier's line (a rim turning concave between
+its apices, say) without a jump. Otherwise the old branch is followed from its last state
+without any jiggle (no help over a barrier), to half a step and to one original step past the
+located point, and where the event shows its end is bisected to 1 % (:func:`_old_branch`). If
+the branch ends less than 10 % of that volume after the located point, the event is an
+*instability*: a fold or bifurcation of the branch (Thompson & Hunt, *A General Theory of
+Elastic Stability*, 1973) that the jiggle only anticipates. If it ends later or goes on past
+the step, it is a *barrier crossing*: the old branch is still a minimum well past the located
+point and the step's jiggle carries the shell over the energy barrier to a lower branch, as in
+the paper's runs, between the energy crossing of the two branches and the classical
+threshold. The lowest eigenvalue's linear extrapolation to zero
+(``eigenvalue_zero_at``) is kept as an estimate; it is no test: near a fold the eigenvalue
+falls like the square root of the distance to it, and the line reaches zero late.
 
 The location is a refinement of the run: the table and the stored steps are not changed, and a
 run located or not has the same steps. It assumes the event is monotone in volume within one
@@ -83,6 +88,11 @@ LOCATED_EVENTS = tuple(EVENT_SHAPES)
 CONTINUOUS_PRESSURE = 0.01
 #: ... and the energy by the pressure's work over the bracket to this fraction of that work.
 CONTINUOUS_WORK = 0.1
+#: A jump is an instability when the old branch, followed without jiggle, ends less than this
+#: fraction of its end's volume after the located point (:func:`_old_branch`) ...
+ANTICIPATION = 0.1
+#: ... that end located to this fraction of its volume.
+BRANCH_END_RTOL = 0.01
 
 
 def check_tol(tol: float) -> float:
@@ -272,8 +282,12 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
     else:
         trend = (before, lowest_before, lo, lowest_start)
     jump = _jump(old, new, ctx.V0 * (hi - lo))
+    branch = None
     if jump:
-        mechanism, zero_at = _mechanism(*trend, hi_start - lo_start)
+        zero_at = _eigenvalue_zero(*trend)
+        branch = _old_branch(step_to, wanted, run, (X_lo, rec_lo), lo, hi,
+                             hi_start - lo_start, tol)
+        mechanism = branch.pop("mechanism")
     else:
         mechanism, zero_at = "continuous", None
     return {
@@ -281,7 +295,7 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         "dV_over_V": 0.5 * (lo + hi), "uncertainty": 0.5 * (hi - lo), "lo": lo, "hi": hi,
         "step_dV_over_V": event.dV_over_V, "old": old, "new": new,
         "lowest_eigenvalue_start": lowest_start, "lowest_eigenvalue_before": lowest_before,
-        "mechanism": mechanism,
+        "mechanism": mechanism, "old_branch": branch,
         "eigenvalue_zero_at": zero_at, "evaluations": evaluations,
         "complete": failure is None, "failure": failure,
         "wall_s": time.perf_counter() - t0,
@@ -301,20 +315,78 @@ def _jump(old: dict, new: dict, dV: float) -> bool:
     return abs(float(new["E_total"]) - float(old["E_total"]) - work) > CONTINUOUS_WORK * scale
 
 
-def _mechanism(v_start: float, lowest_start: float, v_old: float, lowest_old: float,
-               step: float) -> tuple[str, float | None]:
-    """``("instability", v0)`` when the old branch's lowest eigenvalue, extrapolated linearly
-    from ``v_start`` (the bracket's start, or the stored step before it when the bracket's
-    lower end did not move) to its last old state ``v_old``, reaches zero at ``v0`` within
-    ``step`` after that state; ``("barrier crossing", v0 or None)`` otherwise;
-    ``("undetermined", None)`` without two old states or eigenvalues."""
+def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi: float,
+                step: float, tol: float) -> dict:
+    """The old branch of a jump located in ``[lo, hi]``, followed without any jiggle (no help
+    over a barrier) from its last state ``start`` at ``lo``: to ``hi + step / 2`` and then
+    ``hi + step`` (one original ``step`` after the located point), each from the state
+    before. Where the event shows, the end of the branch is bisected (from the last old
+    state, without jiggle) to ``max(tol, BRANCH_END_RTOL * end)``.
+
+    Returns ``mechanism``: ``instability`` when the branch ends less than ``ANTICIPATION`` of
+    its end's volume after the located point (the jiggle only anticipates a fold or
+    bifurcation), ``barrier crossing`` when it ends later or goes on past the step,
+    ``undetermined`` when a step of the walk leaves the physical domain (``failure`` says
+    which); ``followed_to``, the furthest volume reached on the old branch; ``end_lo``,
+    ``end_hi``, the bracket of its end, and ``anticipation``, ``1 - located / end`` with the
+    bracket's middle as the end (all None when it goes on); ``evaluations``, each step."""
+    X, record = start
+    last, walk = lo, []
+    found = {"followed_to": lo, "end_lo": None, "end_hi": None, "anticipation": None,
+             "evaluations": walk}
+
+    def follow(v):
+        try:
+            state, rec = step_to(v, jiggle=False, start=(X, record))
+        except LeftDomain as exc:
+            why = f"the step to dV/V = {v:.6f} without jiggle left the physical domain"
+            return None, None, f"{why}: {exc.reason}"
+        shape = classify(state.X, run.faces).shape
+        walk.append({"dV_over_V": v, "shape": shape, "shows_event": wanted(shape),
+                     "E_total": rec["E_total"], "pressure": rec["pressure"],
+                     "converged": rec["converged"]})
+        return state, rec, None
+
+    for end in (hi + 0.5 * step, hi + step):
+        state, rec, failure = follow(end)
+        if failure is not None:
+            return found | {"mechanism": "undetermined", "failure": failure}
+        if walk[-1]["shows_event"]:
+            break
+        X, record, last = state.X, rec, end
+        found["followed_to"] = end
+    else:
+        return found | {"mechanism": "barrier crossing"}
+    while end - last > max(tol, BRANCH_END_RTOL * end):
+        mid = 0.5 * (last + end)
+        state, rec, failure = follow(mid)
+        if failure is not None:
+            return found | {"mechanism": "undetermined", "failure": failure}
+        if walk[-1]["shows_event"]:
+            end = mid
+        else:
+            X, record, last = state.X, rec, mid
+            found["followed_to"] = mid
+    anticipation = 1.0 - 0.5 * (lo + hi) / (0.5 * (last + end))
+    return found | {"end_lo": last, "end_hi": end, "anticipation": anticipation,
+                    "mechanism": ("instability" if anticipation <= ANTICIPATION
+                                  else "barrier crossing")}
+
+
+def _eigenvalue_zero(v_start: float, lowest_start: float, v_old: float,
+                     lowest_old: float) -> float | None:
+    """Where the old branch's lowest eigenvalue, extrapolated linearly from ``v_start`` (the
+    bracket's start, or the stored step before it when the bracket's lower end did not move)
+    to its last old state ``v_old``, reaches zero: ``v_old`` itself if it is not positive
+    there, None if it does not fall or without two old states and eigenvalues. An estimate,
+    not a test: near a fold the eigenvalue falls like a square root and the line reaches zero
+    late (the mechanism is found by :func:`_old_branch`)."""
     if not (math.isfinite(v_start) and math.isfinite(lowest_start)
             and math.isfinite(lowest_old)) or v_old <= v_start:
-        return "undetermined", None
+        return None
     if lowest_old <= 0:
-        return "instability", v_old
+        return v_old
     slope = (lowest_old - lowest_start) / (v_old - v_start)
     if slope >= 0:
-        return "barrier crossing", None
-    zero_at = v_old - lowest_old / slope
-    return ("instability" if zero_at - v_old <= step else "barrier crossing"), float(zero_at)
+        return None
+    return float(v_old - lowest_old / slope)

@@ -63,6 +63,13 @@ def print_located(run, points: dict) -> None:
                 f"-> {new['E_over_kappa']:.5g}, p {old['pressure']:.5g} -> {new['pressure']:.5g}, "
                 f"lowest eigenvalue {old['lowest_eigenvalue']:.3g} -> "
                 f"{new['lowest_eigenvalue']:.3g}: {p['mechanism']}")
+        branch = p.get("old_branch")  # (points located before it was followed: none)
+        if branch and branch.get("end_hi") is not None:
+            line += (f" (the old branch without jiggle ends at "
+                     f"{0.5 * (branch['end_lo'] + branch['end_hi']):.4f}, "
+                     f"{100 * branch['anticipation']:.0f} % later)")
+        elif branch and branch.get("failure") is None:
+            line += f" (the old branch without jiggle goes on past {branch['followed_to']:.4f})"
         if not p.get("complete", True):
             line += f"; incomplete: {p['failure']}"
         print(line)
