@@ -14,8 +14,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from shellbuckle import theory
 from shellbuckle.analysis.collect import collect_runs
 from shellbuckle.cli import main as cli_main
+from shellbuckle.locate import located
+from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run
 from shellbuckle.studies import refinement
 from shellbuckle.studies.refinement import energy_at, mean_edge, richardson
@@ -131,11 +134,23 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
                 if dv.min() <= at <= dv.max() else math.nan
             np.testing.assert_allclose(rows.loc[refinement.energy_column(at), "mean"],
                                        expected, rtol=1e-12)
+        # the sphere branch's end is the one the location found by following it without jiggle
+        point = located(run["path"])["primary_buckling"]
+        end = rows.loc["primary_branch_end_dV_over_V", "mean"]
+        if point["old_branch"]["end_lo"] is None:
+            assert math.isnan(end)
+        else:
+            assert point["old_branch"]["end_lo"] < end < point["old_branch"]["end_hi"]
+            assert end > run["primary_dV_over_V"]
     primary = table[table["quantity"] == "primary_dV_over_V"]
     assert np.isfinite(primary["mean"]).all()  # gamma = 271 buckles before dV/V = 0.3
     assert (primary["method"] == "order 2 assumed (2 meshes)").all()
     text = (study / refinement.MARKDOWN).read_text()
     assert "primary buckling dV/V" in text and "N = 600" in text
+    classical = theory.classical_threshold(ShellParameters.from_gamma(
+        271, nu=1 / 3, energy_convention="helfrich")).dV_over_V_exact
+    assert f"Classical threshold of the perfect sphere (the limit of the sphere branch's " \
+           f"end): dV/V = {classical:.4g}." in text
 
 
 def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):

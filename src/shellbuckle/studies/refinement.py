@@ -60,6 +60,10 @@ THRESHOLDS = {"primary_dV_over_V": "primary buckling dV/V",
               "axisymmetry_loss_dV_over_V": "loss of axisymmetry dV/V",
               "wrinkles_dV_over_V": "wrinkle onset dV/V",
               "W_mean": "W near dV/V = 0.645"}
+#: Where the sphere branch ends when followed without any jiggle (the located primary
+#: buckling's ``old_branch``, :func:`shellbuckle.locate._old_branch`): the discrete shell's own
+#: instability, whose limit is the classical threshold of :func:`shellbuckle.theory.classical_threshold`.
+BRANCH_END = {"primary_branch_end_dV_over_V": "sphere branch's end without jiggle dV/V"}
 CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
 
 
@@ -69,7 +73,8 @@ def energy_column(at: float) -> str:
 
 def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
     """Column name -> label of every quantity of the table, in order."""
-    return THRESHOLDS | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at}
+    return (THRESHOLDS | BRANCH_END
+            | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at})
 
 
 def mean_edge(n_vertices) -> np.ndarray:
@@ -108,6 +113,16 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
     return float(np.interp(at, dv, E))
 
 
+def branch_end(point: dict | None) -> float:
+    """The middle of the bracket of the old branch's end of a located point (NaN without
+    one: not located, located before the branch was followed, a continuous event, or a branch
+    that goes on past the step)."""
+    branch = (point or {}).get("old_branch") or {}
+    if branch.get("end_lo") is None or branch.get("end_hi") is None:
+        return math.nan
+    return 0.5 * (float(branch["end_lo"]) + float(branch["end_hi"]))
+
+
 def _imperfection(protocol: dict) -> str:
     if protocol.get("smooth_jiggle") is not None:
         return f"smooth {protocol['smooth_jiggle']:.3g} R, L <= {protocol.get('smooth_degree')}"
@@ -118,22 +133,27 @@ def _imperfection(protocol: dict) -> str:
 
 def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """One row per finished run of ``paths`` (run or sweep folders): the columns of
-    :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description)
-    and ``E_over_kappa_at_<a>`` for each ``a`` of ``energy_at_values``."""
+    :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
+    ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
+    was located before the branch was followed, or is no jump) and ``E_over_kappa_at_<a>``
+    for each ``a`` of ``energy_at_values``."""
     from ..analysis.collect import collect_runs
+    from ..store.located import read_located
     from ..store.run import RunStore
 
     tables: dict = {}
     runs = collect_runs(paths, tables=tables)
     runs = runs[runs["status"] == "finished"].reset_index(drop=True)
-    imperfections, energies = [], {a: [] for a in energy_at_values}
+    imperfections, energies, ends = [], {a: [] for a in energy_at_values}, []
     for path in runs["path"]:
         meta = RunStore.open(path).meta
         imperfections.append(_imperfection(meta.get("protocol", {})))
+        ends.append(branch_end(read_located(path).get("primary_buckling")))
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
             energies[a].append(energy_at(tables[path], kappa, a))
     runs["imperfection"] = imperfections
+    runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
     return runs
@@ -375,6 +395,8 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                                                              else ", finest" if n == finest
                                                              else "") for n in sizes]
         lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
+                  f"Classical threshold of the perfect sphere (the limit of the sphere "
+                  f"branch's end): dV/V = {_classical(convention, gamma, nu):.4g}.", "",
                   "| quantity | " + " | ".join(heads) + " | h -> 0 | extrapolation | "
                   "error of the paper's mesh |",
                   "|---" * (len(sizes) + 4) + "|"]
@@ -389,6 +411,16 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                          + f"{first['method']} | {_error(first)} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _classical(convention: str, gamma: float, nu: float) -> float:
+    """dV/V of the classical threshold (:func:`shellbuckle.theory.classical_threshold`)."""
+    from .. import theory
+    from ..params import ShellParameters
+
+    params = ShellParameters.from_gamma(float(gamma), nu=float(nu),
+                                        energy_convention=convention)
+    return float(theory.classical_threshold(params).dV_over_V_exact)
 
 
 def figure(table: pd.DataFrame):
@@ -423,6 +455,9 @@ def figure(table: pd.DataFrame):
                 ax.plot(h, first["extrapolated"] + c * h ** order, ls="--", lw=0.8,
                         color=colour)
                 ax.plot([0.0], [first["extrapolated"]], marker="*", ms=8, color=colour)
+            if name in BRANCH_END:  # its limit in theory: the classical threshold
+                ax.plot([0.0], [_classical(*key[:3])], marker="D", ms=5, mfc="none",
+                        color=colour)
         if not np.isfinite(table.loc[table["quantity"] == name, "mean"]
                            .to_numpy(dtype=float)).any():
             ax.text(0.5, 0.5, "no value on any mesh", ha="center", va="center",
@@ -440,7 +475,7 @@ def figure(table: pd.DataFrame):
         fig.legend(handles, labels, loc="outside lower center", ncols=min(3, len(labels)),
                    fontsize=8)
     fig.suptitle("Mesh refinement: values against the mean edge h (dotted: the paper's mesh; "
-                 "star: h -> 0)", fontsize=9)
+                 "star: h -> 0; open diamond: the classical threshold)", fontsize=9)
     return fig
 
 
