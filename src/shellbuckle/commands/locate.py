@@ -16,7 +16,8 @@ def register(sub) -> None:
                     "protocol's step (same jiggle, minimizations and zero-curvature cycle) is "
                     "made to the middle volume and classified, until the bracket is narrower "
                     "than --tol. The located points (volume, energies, pressure, the lowest "
-                    "eigenvalue of the constrained Hessian on both sides, the mechanism) are "
+                    "eigenvalue of the constrained Hessian on both sides, the mechanism: "
+                    "where the old branch, followed without jiggle, ends) are "
                     "stored in DIR/located.json; the steps and the table are not changed. "
                     "Thresholds, fits and Fig. 10 then use them. `deflate` does this at the "
                     "end of every finished run unless --no-locate.")
