@@ -8,20 +8,24 @@ Run from the repository root, on a stored run folder:
     python benchmarks/bench_slide.py h10k --replay 17,20       # and two steps made again
 
 First table, one line per stored step after the primary buckling: the minimizer's iterations
-(the table's, all minimizations of the step), the class of the shape, and how far the dent's
-axis turned since the step before (degrees, and the arc it swept at radius R in mean edge
-lengths ``h``; the axis of the material points: the vertices' reference directions weighted
-by how far each lies inside the median radius, squared). The dent's position on a sphere is a symmetry of the continuous shell (a
-rotation of the dent against the material costs no energy); on a mesh it is pinned weakly, and
-a step in which it slides to another pinning site costs several times a step in which it stays.
+(the table's, all minimizations of the step), the class of the shape (the steps are classified,
+and the analysis stored as ``shellbuckle analyze`` does, where the run has none), and how far the dent's axis turned since the
+step before (degrees, and the arc it swept at radius R in mean edge lengths ``h``; the axis of
+the material points: the vertices' reference directions weighted by how far each lies inside
+the median radius, squared). The dent's position on a sphere is a symmetry of the continuous
+shell (a rotation of the dent against the material costs no energy); on a mesh it is pinned
+weakly, and a step in which it slides to another pinning site costs several times a step in
+which it stays.
 
 Second table, for each ``--replay`` step (made again by the protocol's own step from the
 stored step before, with its jiggle, one thread; the result equals the stored one to the
-printed energy): per minimization of the step (from the jiggled start, the zero-curvature
-stage of the c0 cycle, the return): its iterations, how many of them it took to come within
-``1e-5`` and ``1e-7`` of its final energy (relative), the turn of the dent's axis from its start
-to its end (in ``h``), and for the return how far it ended from where the first minimization
-did (the largest vertex distance, in ``h``, and the energy difference). No timing is printed (``bench_scaling.py`` times steps).
+printed energy): per minimization of the step, in order, with its c0 (from the jiggled start;
+with the c0 cycle, its zero-curvature stage and the return): its iterations, after how many
+accepted steps (relaxation, quasi-Newton and Newton) it came within ``1e-5`` and ``1e-7`` of
+its final energy (relative), the turn of the dent's axis from its start to its end (in ``h``),
+and for every minimization after the first at the first one's c0 how far it ended from where
+the first did (the largest vertex distance, in ``h``, and the energy difference). No timing is
+printed (``bench_scaling.py`` times steps).
 """
 
 from __future__ import annotations
@@ -35,12 +39,11 @@ import argparse  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from shellbuckle.analysis.classify import classify  # noqa: E402
+from shellbuckle.analysis.classify import analyze_run, classify, is_current  # noqa: E402
 from shellbuckle.locate import StepFromStored  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.run import Run  # noqa: E402
 from shellbuckle.solve.linesearch import max_displacement, mean_edge_length  # noqa: E402
-
 
 
 def dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -61,13 +64,18 @@ def turn(a: np.ndarray, b: np.ndarray) -> float:
 def slides(run: Run, h: float) -> list[str]:
     """The first table: every stored step after the primary buckling."""
     table = run.table.set_index("step")
-    shapes = {int(k): str(a["shape"]) for k, a in run.store.analysis().items()}
+    analysis = run.store.analysis()
+    missing = [k for k in run.steps if not is_current(analysis.get(k))]
+    if missing:  # a run made with --no-locate and never analysed
+        analyze_run(run, steps=missing)
+        analysis = run.store.analysis()
+    shapes = {int(k): str(a["shape"]) for k, a in analysis.items()}
     buckled = next((k for k in table.index if shapes.get(k, "sphere") != "sphere"), None)
     if buckled is None:
         return ["the run stays a sphere: no dent to follow"]
     lines = [f"{'step':>5} {'dV/V':>7} {'iterations':>10} {'shape':>10} {'turn deg':>9} "
              f"{'turn h':>7}"]
-    X0 = run.store.X0
+    X0, radius = run.store.X0, float(run.params.R)
     previous = dent_axis(X0, run.positions(buckled))
     quiet, moved = [], []
     for k in table.index[table.index > buckled]:
@@ -75,9 +83,10 @@ def slides(run: Run, h: float) -> list[str]:
         angle = turn(previous, axis)
         previous = axis
         iterations = int(table.loc[k, "iterations"])
-        (moved if angle / h >= 1.0 else quiet).append(iterations)
+        arc = angle * radius / h  # the arc swept at radius R, in mean edges
+        (moved if arc >= 1.0 else quiet).append(iterations)
         lines.append(f"{k:5d} {table.loc[k, 'dV_over_V']:7.3f} {iterations:10d} "
-                     f"{shapes.get(k, '?'):>10} {np.degrees(angle):9.2f} {angle / h:7.2f}")
+                     f"{shapes.get(k, '?'):>10} {np.degrees(angle):9.2f} {arc:7.2f}")
     for name, group in (("dent stays (turn < 1 h)", quiet), ("dent slides (turn >= 1 h)", moved)):
         if group:
             lines.append(f"{name}: {len(group)} steps, {np.mean(group):.0f} iterations per step "
@@ -93,7 +102,7 @@ def replay(run: Run, k: int, h: float) -> list[str]:
     def keeping(*args, **kwargs):  # the protocol's minimization, with its history kept
         kwargs["history"] = True
         result = inner(*args, **kwargs)
-        results.append((args[2], result))
+        results.append((args[0], args[2], result))
         return result
 
     protocol_mod.minimize = keeping
@@ -103,20 +112,22 @@ def replay(run: Run, k: int, h: float) -> list[str]:
     finally:
         protocol_mod.minimize = inner
     stored = float(run.store.record(k)["E_total"])
+    X0 = run.store.X0
     lines = [f"step {k}: E {record['E_total']:.12g} (stored {stored:.12g}), "
              f"{record['iterations']} iterations, {classify(state.X, run.faces).shape}"]
-    names = ["from the jiggled start", "c0 = 0 (cycle)", "back at the step's c0"]
-    for i, (start, result) in enumerate(results):
+    first = results[0][2]
+    first_energy, radius = first.fun, float(run.params.R)
+    for i, (energy, start, result) in enumerate(results):
         E = np.array([r["energy"] for r in result.history or []] + [result.fun])
         within = [int(np.argmax(np.abs(E - result.fun) <= rel * abs(result.fun)))
                   for rel in (1e-5, 1e-7)]
-        line = (f"  {names[i] if i < len(names) else 'minimization':<24} {result.nit:5d} "
-                f"iterations, within 1e-5 after {within[0]:4d}, 1e-7 after {within[1]:4d}; "
-                f"axis turned {turn(dent_axis(run.store.X0, start), dent_axis(run.store.X0, result.x)) / h:5.2f} h")
-        if i == 2:
-            first = results[0][1]
+        c0 = getattr(energy, "c0", float("nan"))
+        line = (f"  c0 = {c0:<5g} {result.nit:5d} iterations, within 1e-5 after {within[0]:4d}, "
+                f"1e-7 after {within[1]:4d}; axis turned "
+                f"{turn(dent_axis(X0, start), dent_axis(X0, result.x)) * radius / h:5.2f} h")
+        if i > 0 and c0 == getattr(results[0][0], "c0", None):
             line += (f"; ends {max_displacement(result.x - first.x) / h:.1e} h from the first "
-                     f"minimum, energy {(result.fun - first.fun) / abs(first.fun):+.1e} "
+                     f"minimum, energy {(result.fun - first_energy) / abs(first_energy):+.1e} "
                      f"relative")
         lines.append(line)
     return lines
@@ -128,8 +139,9 @@ def main(argv=None) -> None:
     parser.add_argument("--replay", default="", help="comma-separated steps to make again")
     args = parser.parse_args(argv)
     run = Run.of(args.run)
-    h = mean_edge_length(run.faces, run.store.X0) / float(run.params.R)
-    print(f"{run.path}: {len(run.store.X0)} vertices, mean edge h = {h:.4f} R")
+    h = mean_edge_length(run.faces, run.store.X0)  # in the run's units of length
+    print(f"{run.path}: {len(run.store.X0)} vertices, mean edge h = "
+          f"{h / float(run.params.R):.4f} R")
     for line in slides(run, h):
         print(line)
     for k in (int(s) for s in args.replay.split(",") if s.strip()):

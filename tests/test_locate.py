@@ -275,36 +275,60 @@ def test_eigenvalue_zero_extrapolates_the_lowest_eigenvalue_linearly():
 
 
 class _Branch:
-    """A stand-in for the step from a stored state: the old branch (a sphere) ends at
-    ``end``; the conformation is the volume reached. Records each call."""
+    """A stand-in for the step from a stored state: the old branch (a sphere at pressure 2,
+    its energy the pressure's work) ends at ``end`` with a jump of the pressure to 1; from
+    ``turns`` on it is classified ``polygonal`` without a jump; a step to a volume in the
+    interval ``leaves_domain`` leaves the physical domain. The conformation is the volume
+    reached. Records each call (volume, jiggle, the start's volume)."""
 
-    def __init__(self, end, leaves_domain_at=None):
-        self.end, self.leaves, self.calls = end, leaves_domain_at, []
+    ctx = type("Ctx", (), {"V0": 1.0})()
+
+    def __init__(self, end, leaves_domain=None, turns=None):
+        self.end, self.leaves, self.turns, self.calls = end, leaves_domain, turns, []
+
+    def ended(self, v):
+        return self.end is not None and v >= self.end
+
+    def shape(self, v):
+        if self.ended(v):
+            return "capsule"
+        return "polygonal" if self.turns is not None and v >= self.turns else "sphere"
 
     def __call__(self, v, *, jiggle=True, start=None):
         self.calls.append((v, jiggle, float(start[0][0])))
-        if self.leaves is not None and v >= self.leaves:
+        if self.leaves is not None and self.leaves[0] <= v < self.leaves[1]:
             raise locate_mod.LeftDomain(3, "a test")
         state = protocol_mod.state_after(3, np.array([v]), {})
-        return state, {"E_total": 1.0, "pressure": 2.0, "converged": True}
+        if self.ended(v):
+            return state, {"E_total": 2.0 * v - 0.5, "pressure": 1.0, "converged": True}
+        return state, {"E_total": 2.0 * v, "pressure": 2.0, "converged": True}
 
 
-@pytest.mark.parametrize("end, mechanism", [(0.0149, "barrier crossing"),
-                                            (0.0080, "instability"), (None, "barrier crossing")])
+def _follow(monkeypatch, branch, lo=0.0076, hi=0.0077, step=0.019, tol=1e-4):
+    monkeypatch.setattr(locate_mod, "classify", lambda X, faces: dataclasses.make_dataclass(
+        "C", ["shape"])(branch.shape(X[0])))
+    start = (np.array([lo]), {"E_total": 2.0 * lo, "pressure": 2.0})
+    return _old_branch(branch, lambda shape: shape != "sphere", type("R", (), {"faces": None})(),
+                       start, lo, hi, step, tol)
+
+
+@pytest.mark.parametrize("end, mechanism", [
+    (0.0149, "barrier crossing"),   # ends between hi + step / 2 and hi + step
+    (0.0120, "barrier crossing"),   # ends before hi + step / 2
+    (0.0080, "instability"),        # ends 4 % after the located point
+    (None, "barrier crossing"),     # goes on past the step
+])
 def test_old_branch_follows_the_branch_without_jiggle_and_brackets_its_end(monkeypatch, end,
                                                                           mechanism):
-    monkeypatch.setattr(locate_mod, "classify", lambda X, faces: dataclasses.make_dataclass(
-        "C", ["shape"])("sphere" if branch.end is None or X[0] < branch.end else "capsule"))
-    branch = _Branch(end)
     lo, hi, step, tol = 0.0076, 0.0077, 0.019, 1e-4
-    found = _old_branch(branch, lambda shape: shape != "sphere",
-                        type("R", (), {"faces": None})(), (np.array([lo]), {}), lo, hi, step, tol)
-    assert found["mechanism"] == mechanism
+    branch = _Branch(end)
+    found = _follow(monkeypatch, branch, lo, hi, step, tol)
+    assert found["mechanism"] == mechanism and "failure" not in found
     # every step without jiggle, each from the furthest state found on the old branch
     reached = lo
     for v, jiggle, start in branch.calls:
         assert jiggle is False and start == reached
-        if end is None or v < end:
+        if not branch.ended(v):
             reached = max(reached, v)
     assert found["followed_to"] == reached
     assert len(found["evaluations"]) == len(branch.calls)
@@ -319,14 +343,38 @@ def test_old_branch_follows_the_branch_without_jiggle_and_brackets_its_end(monke
     assert abs(found["anticipation"] - (1 - located_at / end)) < 0.02
 
 
-def test_old_branch_that_leaves_the_domain_leaves_the_mechanism_undetermined(monkeypatch):
-    monkeypatch.setattr(locate_mod, "classify",
-                        lambda X, faces: dataclasses.make_dataclass("C", ["shape"])("sphere"))
-    found = _old_branch(_Branch(None, leaves_domain_at=0.02), lambda shape: shape != "sphere",
-                        type("R", (), {"faces": None})(), (np.array([0.0076]), {}), 0.0076,
-                        0.0077, 0.019, 1e-4)
+def test_old_branch_is_followed_far_enough_to_tell_an_instability(monkeypatch):
+    """A short step (0.001 at dV/V 0.1): one step past the located point is short of where an
+    end 10 % later would be; the walk goes there, and finds the end at 0.109 (8 % after)."""
+    branch = _Branch(0.109)
+    found = _follow(monkeypatch, branch, lo=0.1, hi=0.1001, step=0.001, tol=1e-4)
+    assert max(v for v, _, _ in branch.calls) > 0.1 / 0.9
+    assert found["mechanism"] == "instability"
+    assert found["end_lo"] < 0.109 <= found["end_hi"]
+    gone_on = _follow(monkeypatch, _Branch(None), lo=0.1, hi=0.1001, step=0.001, tol=1e-4)
+    assert gone_on["mechanism"] == "barrier crossing"
+    assert gone_on["followed_to"] >= 0.10005 / 0.9  # the 10 % line, passed on the branch
+
+
+def test_old_branch_turning_class_without_a_jump_goes_on(monkeypatch):
+    """The old branch crosses the classifier's line continuously at 0.012 (same pressure, the
+    energy its work): no end there; it ends at 0.020 with a jump."""
+    branch = _Branch(0.020, turns=0.012)
+    found = _follow(monkeypatch, branch)
+    assert found["end_lo"] < 0.020 <= found["end_hi"]
+    assert any(e["shows_event"] and not e["ends"] for e in found["evaluations"])
+    assert found["mechanism"] == "barrier crossing"
+
+
+def test_old_branch_that_leaves_the_domain(monkeypatch):
+    # before an end is bracketed: undetermined
+    found = _follow(monkeypatch, _Branch(None, leaves_domain=(0.02, 1.0)))
     assert found["mechanism"] == "undetermined" and "left the physical domain" in found["failure"]
     assert found["followed_to"] == pytest.approx(0.0077 + 0.0095)
+    # inside the bisection of the end: the bracket had so far is kept, and the failure said
+    found = _follow(monkeypatch, _Branch(0.0149, leaves_domain=(0.0120, 0.0130)))
+    assert found["end_lo"] < 0.0149 <= found["end_hi"] and "only" in found["failure"]
+    assert found["mechanism"] == "barrier crossing"
 
 
 def test_jump_compares_the_energy_difference_with_the_pressure_work():
@@ -404,3 +452,18 @@ def test_the_sphere_branch_without_imperfection_ends_at_the_same_volume_on_two_m
     assert ends[1] == pytest.approx(ends[0], abs=TOL)
     classical = theory.classical_threshold(params).dV_over_V_exact
     assert 0.9 * classical < ends[1] < classical
+
+
+def test_the_printed_line_says_where_the_old_branch_ends():
+    from shellbuckle.commands._output import _old_branch_text
+
+    ends = {"followed_to": 0.0764, "end_lo": 0.0764, "end_hi": 0.0770,
+            "anticipation": 1 - 0.07285 / 0.0767}
+    assert _old_branch_text(ends) == (" (the old branch without jiggle ends at 0.0767; the "
+                                      "located point is 5 % of that volume short of it)")
+    assert _old_branch_text({"followed_to": 0.0267, "end_lo": None, "end_hi": None}) == \
+        " (the old branch without jiggle goes on past 0.0267)"
+    failed = _old_branch_text({"followed_to": 0.0172, "end_lo": None, "end_hi": None,
+                               "failure": "the step to dV/V = 0.026700 ... left"})
+    assert failed.startswith(" (the old branch without jiggle reached 0.0172; the step")
+    assert _old_branch_text(None) == ""

@@ -32,7 +32,8 @@ continuous and the energy difference the pressure's work over the bracket, :func
 event is *continuous*: the shape crosses the classifier's line (a rim turning concave between
 its apices, say) without a jump. Otherwise the old branch is followed from its last state
 without any jiggle (no help over a barrier), to half a step and to one original step past the
-located point, and where the event shows its end is bisected to 1 % (:func:`_old_branch`). If
+located point (further if that is short of 10 % beyond it); it ends where the event shows with
+a jump (:func:`_jump`), and its end is then bisected to 1 % (:func:`_old_branch`). If
 the branch ends less than 10 % of that volume after the located point, the event is an
 *instability*: a fold or bifurcation of the branch (Thompson & Hunt, *A General Theory of
 Elastic Stability*, 1973) that the jiggle only anticipates. If it ends later or goes on past
@@ -124,9 +125,9 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     """Locate the threshold events ``names`` of a stored deflation run and store them.
 
     Returns ``{name: point}`` for every event of ``names`` that the run shows (module
-    docstring; the keys of a point are those :func:`_locate_event` returns). An event already located in
-    the folder at the same step, analysis version and a tolerance at least as fine is kept
-    unless ``again``. ``threads`` as in :func:`shellbuckle.run.deflate`; the run's PARDISO mode
+    docstring; the keys of a point are those :func:`_locate_event` returns). An event already
+    located in the folder at the same step, analysis version and a tolerance at least as fine,
+    with its old branch followed, is kept unless ``again``. ``threads`` as in :func:`shellbuckle.run.deflate`; the run's PARDISO mode
     is used, so the location is reproducible. A run that cannot be located
     (:func:`locatable`) gives ``{}``.
     """
@@ -145,8 +146,10 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     out, todo = {}, []
     for name, event in found.items():
         point = stored.get(name)
+        # (a point located before the old branch was followed, without "old_branch", is
+        # located again: its mechanism came from an extrapolation of the lowest eigenvalue)
         if (point and point.get("step") == event.step and point.get("tol", 1.0) <= tol * 1.000001
-                and point.get("analysis_version") == ANALYSIS_VERSION):
+                and point.get("analysis_version") == ANALYSIS_VERSION and "old_branch" in point):
             out[name] = point
         else:
             todo.append(event)
@@ -318,40 +321,52 @@ def _jump(old: dict, new: dict, dV: float) -> bool:
 def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi: float,
                 step: float, tol: float) -> dict:
     """The old branch of a jump located in ``[lo, hi]``, followed without any jiggle (no help
-    over a barrier) from its last state ``start`` at ``lo``: to ``hi + step / 2`` and then
-    ``hi + step`` (one original ``step`` after the located point), each from the state
-    before. Where the event shows, the end of the branch is bisected (from the last old
-    state, without jiggle) to ``max(tol, BRANCH_END_RTOL * end)``.
+    over a barrier) from its last state ``start`` at ``lo``: to ``hi + step / 2`` and then to
+    ``reach``, one original ``step`` past the located point or, if that is nearer, where the
+    branch would end ``ANTICIPATION`` of its volume after it; each step from the state before.
+    The branch ends where a step shows the event with a jump from the state before
+    (:func:`_jump`); one that shows it continuously (the old branch crossing the classifier's
+    line) goes on. Where it ends, its end is bisected (from the last old state, without jiggle)
+    to ``max(tol, BRANCH_END_RTOL * end)``.
 
     Returns ``mechanism``: ``instability`` when the branch ends less than ``ANTICIPATION`` of
     its end's volume after the located point (the jiggle only anticipates a fold or
-    bifurcation), ``barrier crossing`` when it ends later or goes on past the step,
-    ``undetermined`` when a step of the walk leaves the physical domain (``failure`` says
-    which); ``followed_to``, the furthest volume reached on the old branch; ``end_lo``,
-    ``end_hi``, the bracket of its end, and ``anticipation``, ``1 - located / end`` with the
-    bracket's middle as the end (all None when it goes on); ``evaluations``, each step."""
+    bifurcation), ``barrier crossing`` when it ends later or goes on past ``reach``,
+    ``undetermined`` when a step of the walk leaves the physical domain before an end is
+    bracketed (``failure`` says which; a failure inside the bisection keeps the bracket had
+    so far and says so too); ``followed_to``, the furthest volume reached on the old branch;
+    ``end_lo``, ``end_hi``, the bracket of its end, and ``anticipation``, ``1 - located /
+    end`` with the bracket's middle as the end (all None when it goes on); ``evaluations``,
+    each step (volume, class, whether it shows the event, whether it ended the branch, energy,
+    pressure, convergence)."""
+    located_at = 0.5 * (lo + hi)
+    reach = max(hi + step, located_at / (1.0 - ANTICIPATION) * (1.0 + BRANCH_END_RTOL))
     X, record = start
     last, walk = lo, []
+    V0 = step_to.ctx.V0
     found = {"followed_to": lo, "end_lo": None, "end_hi": None, "anticipation": None,
              "evaluations": walk}
 
     def follow(v):
+        """The step to ``v`` from the last old state: (state, record, ended, failure)."""
         try:
             state, rec = step_to(v, jiggle=False, start=(X, record))
         except LeftDomain as exc:
             why = f"the step to dV/V = {v:.6f} without jiggle left the physical domain"
-            return None, None, f"{why}: {exc.reason}"
+            return None, None, False, f"{why}: {exc.reason}"
         shape = classify(state.X, run.faces).shape
-        walk.append({"dV_over_V": v, "shape": shape, "shows_event": wanted(shape),
+        shows = wanted(shape)
+        ended = shows and _jump(record, rec, V0 * (v - last))
+        walk.append({"dV_over_V": v, "shape": shape, "shows_event": shows, "ends": ended,
                      "E_total": rec["E_total"], "pressure": rec["pressure"],
                      "converged": rec["converged"]})
-        return state, rec, None
+        return state, rec, ended, None
 
-    for end in (hi + 0.5 * step, hi + step):
-        state, rec, failure = follow(end)
+    for end in (min(hi + 0.5 * step, reach), reach):
+        state, rec, ended, failure = follow(end)
         if failure is not None:
             return found | {"mechanism": "undetermined", "failure": failure}
-        if walk[-1]["shows_event"]:
+        if ended:
             break
         X, record, last = state.X, rec, end
         found["followed_to"] = end
@@ -359,15 +374,16 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
         return found | {"mechanism": "barrier crossing"}
     while end - last > max(tol, BRANCH_END_RTOL * end):
         mid = 0.5 * (last + end)
-        state, rec, failure = follow(mid)
+        state, rec, ended, failure = follow(mid)
         if failure is not None:
-            return found | {"mechanism": "undetermined", "failure": failure}
-        if walk[-1]["shows_event"]:
+            found["failure"] = f"{failure}; the end bracketed to [{last:.6f}, {end:.6f}] only"
+            break
+        if ended:
             end = mid
         else:
             X, record, last = state.X, rec, mid
             found["followed_to"] = mid
-    anticipation = 1.0 - 0.5 * (lo + hi) / (0.5 * (last + end))
+    anticipation = 1.0 - located_at / (0.5 * (last + end))
     return found | {"end_lo": last, "end_hi": end, "anticipation": anticipation,
                     "mechanism": ("instability" if anticipation <= ANTICIPATION
                                   else "barrier crossing")}

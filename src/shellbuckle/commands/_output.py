@@ -46,6 +46,25 @@ def print_json(value, indent=None) -> int:
     return 0
 
 
+def _old_branch_text(branch: dict | None) -> str:
+    """Where the old branch of a located jump, followed without jiggle, ends (empty for a
+    continuous event or a point located before the branch was followed)."""
+    if not branch:
+        return ""
+    if branch.get("end_hi") is not None:
+        end = 0.5 * (branch["end_lo"] + branch["end_hi"])
+        share = 100 * branch["anticipation"]
+        where = (f"the located point is {share:.0f} % of that volume short of it" if share >= 0
+                 else f"{-share:.0f} % before the located point")
+        text = f" (the old branch without jiggle ends at {end:.4f}; {where})"
+    else:
+        text = f" (the old branch without jiggle goes on past {branch['followed_to']:.4f})"
+    if branch.get("failure"):
+        text = (f" (the old branch without jiggle reached {branch['followed_to']:.4f}; "
+                if branch.get("end_hi") is None else text[:-1] + "; ") + branch["failure"] + ")"
+    return text
+
+
 def print_located(run, points: dict) -> None:
     """One line per located event: the step reading, the located value and the mechanism."""
     if not points:
@@ -63,13 +82,7 @@ def print_located(run, points: dict) -> None:
                 f"-> {new['E_over_kappa']:.5g}, p {old['pressure']:.5g} -> {new['pressure']:.5g}, "
                 f"lowest eigenvalue {old['lowest_eigenvalue']:.3g} -> "
                 f"{new['lowest_eigenvalue']:.3g}: {p['mechanism']}")
-        branch = p.get("old_branch")  # (points located before it was followed: none)
-        if branch and branch.get("end_hi") is not None:
-            line += (f" (the old branch without jiggle ends at "
-                     f"{0.5 * (branch['end_lo'] + branch['end_hi']):.4f}, "
-                     f"{100 * branch['anticipation']:.0f} % later)")
-        elif branch and branch.get("failure") is None:
-            line += f" (the old branch without jiggle goes on past {branch['followed_to']:.4f})"
+        line += _old_branch_text(p.get("old_branch"))
         if not p.get("complete", True):
             line += f"; incomplete: {p['failure']}"
         print(line)

@@ -62,7 +62,8 @@ THRESHOLDS = {"primary_dV_over_V": "primary buckling dV/V",
               "W_mean": "W near dV/V = 0.645"}
 #: Where the sphere branch ends when followed without any jiggle (the located primary
 #: buckling's ``old_branch``, :func:`shellbuckle.locate._old_branch`): the discrete shell's own
-#: instability, whose limit is the classical threshold of :func:`shellbuckle.theory.classical_threshold`.
+#: instability, to compare with the thin-shell classical threshold
+#: (:func:`shellbuckle.theory.classical_threshold`).
 BRANCH_END = {"primary_branch_end_dV_over_V": "sphere branch's end without jiggle dV/V"}
 CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
 
@@ -113,6 +114,20 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
     return float(np.interp(at, dv, E))
 
 
+def _primary_point(path, table, points: dict) -> dict | None:
+    """The located primary buckling of the run at ``path`` if it belongs to the run's primary
+    buckling event (the same step) and its location is complete, as the thresholds require
+    (:func:`shellbuckle.analysis.events.events`)."""
+    from ..analysis.events import events
+
+    point = points.get("primary_buckling")
+    primary = next((e for e in events(path, table=table, located=False)
+                    if e.name == "primary_buckling"), None)
+    if primary is None or not point or point.get("step") != primary.step:
+        return None
+    return point if point.get("complete", False) else None
+
+
 def branch_end(point: dict | None) -> float:
     """The middle of the bracket of the old branch's end of a located point (NaN without
     one: not located, located before the branch was followed, a continuous event, or a branch
@@ -148,7 +163,7 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     for path in runs["path"]:
         meta = RunStore.open(path).meta
         imperfections.append(_imperfection(meta.get("protocol", {})))
-        ends.append(branch_end(read_located(path).get("primary_buckling")))
+        ends.append(branch_end(_primary_point(path, tables[path], read_located(path))))
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
             energies[a].append(energy_at(tables[path], kappa, a))
@@ -395,8 +410,9 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                                                              else ", finest" if n == finest
                                                              else "") for n in sizes]
         lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
-                  f"Classical threshold of the perfect sphere (the limit of the sphere "
-                  f"branch's end): dV/V = {_classical(convention, gamma, nu):.4g}.", "",
+                  f"Classical threshold of the perfect sphere (thin-shell theory, to compare "
+                  f"with the sphere branch's end): dV/V = "
+                  f"{_classical(convention, gamma, nu):.4g}.", "",
                   "| quantity | " + " | ".join(heads) + " | h -> 0 | extrapolation | "
                   "error of the paper's mesh |",
                   "|---" * (len(sizes) + 4) + "|"]
