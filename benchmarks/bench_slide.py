@@ -8,11 +8,11 @@ Run from the repository root, on a stored run folder:
     python benchmarks/bench_slide.py h10k --replay 17,20       # and two steps made again
 
 First table, one line per stored step after the primary buckling: the minimizer's iterations
-(the table's, all minimizations of the step), the class of the shape (the steps are classified,
-and the analysis stored as ``shellbuckle analyze`` does, where the run has none), and how far the dent's axis turned since the
-step before (degrees, and the arc it swept at radius R in mean edge lengths ``h``; the axis of
-the material points: the vertices' reference directions weighted by how far each lies inside
-the median radius, squared). The dent's position on a sphere is a symmetry of the continuous
+(the table's, all minimizations of the step), the class of the shape (the steps are
+classified, and the analysis stored as ``shellbuckle analyze`` does, where the run has none),
+and how far the dent's axis turned since the step before (degrees, and the arc it swept at
+radius R in mean edge lengths ``h``; the axis of the material points: the vertices' reference
+directions weighted by how far each lies inside the median radius, squared). The dent's position on a sphere is a symmetry of the continuous
 shell (a rotation of the dent against the material costs no energy); on a mesh it is pinned
 weakly, and a step in which it slides to another pinning site costs several times a step in
 which it stays.
