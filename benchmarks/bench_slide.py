@@ -12,10 +12,10 @@ First table, one line per stored step after the primary buckling: the minimizer'
 classified, and the analysis stored as ``shellbuckle analyze`` does, where the run has none),
 and how far the dent's axis turned since the step before (degrees, and the arc it swept at
 radius R in mean edge lengths ``h``; the axis of the material points: the vertices' reference
-directions weighted by how far each lies inside the median radius, squared). The dent's position on a sphere is a symmetry of the continuous
-shell (a rotation of the dent against the material costs no energy); on a mesh it is pinned
-weakly, and a step in which it slides to another pinning site costs several times a step in
-which it stays.
+directions weighted by how far each lies inside the median radius, squared). The dent's
+position on a sphere is a symmetry of the continuous shell (a rotation of the dent against the
+material costs no energy); on a mesh it is pinned weakly, and a step in which it slides to
+another pinning site costs several times a step in which it stays.
 
 Second table, for each ``--replay`` step (made again by the protocol's own step from the
 stored step before, with its jiggle, one thread; the result equals the stored one to the
