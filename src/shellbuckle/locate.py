@@ -127,9 +127,9 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     Returns ``{name: point}`` for every event of ``names`` that the run shows (module
     docstring; the keys of a point are those :func:`_locate_event` returns). An event already
     located in the folder at the same step, analysis version and a tolerance at least as fine,
-    with its old branch followed, is kept unless ``again``. ``threads`` as in :func:`shellbuckle.run.deflate`; the run's PARDISO mode
-    is used, so the location is reproducible. A run that cannot be located
-    (:func:`locatable`) gives ``{}``.
+    with its old branch followed, is kept unless ``again``. ``threads`` as in
+    :func:`shellbuckle.run.deflate`; the run's PARDISO mode is used, so the location is
+    reproducible. A run that cannot be located (:func:`locatable`) gives ``{}``.
     """
     tol = check_tol(tol)
     run = Run.of(run_or_path)
@@ -322,8 +322,9 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
                 step: float, tol: float) -> dict:
     """The old branch of a jump located in ``[lo, hi]``, followed without any jiggle (no help
     over a barrier) from its last state ``start`` at ``lo``: to ``hi + step / 2`` and then to
-    ``reach``, one original ``step`` past the located point or, if that is nearer, where the
-    branch would end ``ANTICIPATION`` of its volume after it; each step from the state before.
+    ``reach``, one original ``step`` past the located point or, if that is farther, just past
+    where a branch ending ``ANTICIPATION`` of its volume after it would end; each step from the
+    state before.
     The branch ends where a step shows the event with a jump from the state before
     (:func:`_jump`); one that shows it continuously (the old branch crossing the classifier's
     line) goes on. Where it ends, its end is bisected (from the last old state, without jiggle)
