@@ -324,8 +324,7 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
     over a barrier) from its last state ``start`` at ``lo``: to ``hi + step / 2`` and then to
     ``reach``, one original ``step`` past the located point or, if that is farther, just past
     where a branch ending ``ANTICIPATION`` of its volume after it would end; each step from the
-    state before.
-    The branch ends where a step shows the event with a jump from the state before
+    state before. The branch ends where a step shows the event with a jump from the state before
     (:func:`_jump`); one that shows it continuously (the old branch crossing the classifier's
     line) goes on. Where it ends, its end is bisected (from the last old state, without jiggle)
     to ``max(tol, BRANCH_END_RTOL * end)``.
@@ -343,10 +342,12 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
     located_at = 0.5 * (lo + hi)
     reach = max(hi + step, located_at / (1.0 - ANTICIPATION) * (1.0 + BRANCH_END_RTOL))
     X, record = start
-    last, walk = lo, []
+    last, walk = lo, []  # the furthest volume reached on the old branch, and every step
     V0 = step_to.ctx.V0
-    found = {"followed_to": lo, "end_lo": None, "end_hi": None, "anticipation": None,
-             "evaluations": walk}
+
+    def found(**values) -> dict:
+        return {"followed_to": last, "end_lo": None, "end_hi": None, "anticipation": None,
+                "evaluations": walk} | values
 
     def follow(v):
         """The step to ``v`` from the last old state: (state, record, ended, failure)."""
@@ -366,28 +367,26 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
     for end in (min(hi + 0.5 * step, reach), reach):
         state, rec, ended, failure = follow(end)
         if failure is not None:
-            return found | {"mechanism": "undetermined", "failure": failure}
+            return found(mechanism="undetermined", failure=failure)
         if ended:
             break
         X, record, last = state.X, rec, end
-        found["followed_to"] = end
     else:
-        return found | {"mechanism": "barrier crossing"}
+        return found(mechanism="barrier crossing")
+    failed = {}
     while end - last > max(tol, BRANCH_END_RTOL * end):
         mid = 0.5 * (last + end)
         state, rec, ended, failure = follow(mid)
         if failure is not None:
-            found["failure"] = f"{failure}; the end bracketed to [{last:.6f}, {end:.6f}] only"
+            failed = {"failure": f"{failure}; the end bracketed to [{last:.6f}, {end:.6f}] only"}
             break
         if ended:
             end = mid
         else:
             X, record, last = state.X, rec, mid
-            found["followed_to"] = mid
     anticipation = 1.0 - located_at / (0.5 * (last + end))
-    return found | {"end_lo": last, "end_hi": end, "anticipation": anticipation,
-                    "mechanism": ("instability" if anticipation <= ANTICIPATION
-                                  else "barrier crossing")}
+    return found(end_lo=last, end_hi=end, anticipation=anticipation, **failed,
+                 mechanism="instability" if anticipation <= ANTICIPATION else "barrier crossing")
 
 
 def _eigenvalue_zero(v_start: float, lowest_start: float, v_old: float,

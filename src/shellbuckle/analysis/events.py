@@ -146,14 +146,24 @@ def _resolved(event: Event, dv: np.ndarray, step: np.ndarray) -> Event:
     return dataclasses.replace(event, resolution=float(abs(dv[i] - before)))
 
 
+def located_point(event: Event, points: dict) -> dict | None:
+    """The located point of ``event`` among a run's located ``points``
+    (:func:`shellbuckle.store.located.read_located`): the one of its name, if it was located at
+    the event's step and its location is complete; else None."""
+    point = points.get(event.name)
+    if point and point.get("step") == event.step and point.get("complete", False):
+        return point
+    return None
+
+
 def _with_located(found: list[Event], run) -> list[Event]:
     from ..store.located import read_located
 
     points = read_located(run.path)
     out = []
     for e in found:
-        point = points.get(e.name)
-        if point and point.get("step") == e.step and point.get("complete", False):
+        point = located_point(e, points)
+        if point:
             e = dataclasses.replace(
                 e, dV_over_V=float(point["dV_over_V"]), resolution=float(point["hi"] - point["lo"]),
                 located=True, description=f"{e.description}; located at dV/V = "

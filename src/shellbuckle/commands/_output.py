@@ -52,17 +52,17 @@ def _old_branch_text(branch: dict | None) -> str:
     if not branch:
         return ""
     if branch.get("end_hi") is not None:
-        end = 0.5 * (branch["end_lo"] + branch["end_hi"])
         share = 100 * branch["anticipation"]
-        where = (f"the located point is {share:.0f} % of that volume short of it" if share >= 0
-                 else f"{-share:.0f} % before the located point")
-        text = f" (the old branch without jiggle ends at {end:.4f}; {where})"
+        parts = [f"ends at {0.5 * (branch['end_lo'] + branch['end_hi']):.4f}",
+                 f"the located point is {share:.0f} % of that volume short of it" if share >= 0
+                 else f"{-share:.0f} % before the located point"]
+    elif branch.get("failure"):
+        parts = [f"reached {branch['followed_to']:.4f}"]
     else:
-        text = f" (the old branch without jiggle goes on past {branch['followed_to']:.4f})"
+        parts = [f"goes on past {branch['followed_to']:.4f}"]
     if branch.get("failure"):
-        text = (f" (the old branch without jiggle reached {branch['followed_to']:.4f}; "
-                if branch.get("end_hi") is None else text[:-1] + "; ") + branch["failure"] + ")"
-    return text
+        parts.append(branch["failure"])
+    return " (the old branch without jiggle " + "; ".join(parts) + ")"
 
 
 def print_located(run, points: dict) -> None:

@@ -116,16 +116,13 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
 
 def _primary_point(path, table, points: dict) -> dict | None:
     """The located primary buckling of the run at ``path`` if it belongs to the run's primary
-    buckling event (the same step) and its location is complete, as the thresholds require
-    (:func:`shellbuckle.analysis.events.events`)."""
-    from ..analysis.events import events
+    buckling event, as the thresholds require
+    (:func:`shellbuckle.analysis.events.located_point`)."""
+    from ..analysis.events import events, located_point
 
-    point = points.get("primary_buckling")
     primary = next((e for e in events(path, table=table, located=False)
                     if e.name == "primary_buckling"), None)
-    if primary is None or not point or point.get("step") != primary.step:
-        return None
-    return point if point.get("complete", False) else None
+    return None if primary is None else located_point(primary, points)
 
 
 def branch_end(point: dict | None) -> float:
@@ -471,7 +468,7 @@ def figure(table: pd.DataFrame):
                 ax.plot(h, first["extrapolated"] + c * h ** order, ls="--", lw=0.8,
                         color=colour)
                 ax.plot([0.0], [first["extrapolated"]], marker="*", ms=8, color=colour)
-            if name in BRANCH_END:  # its limit in theory: the classical threshold
+            if name in BRANCH_END:  # beside it: the thin-shell classical threshold
                 ax.plot([0.0], [_classical(*key[:3])], marker="D", ms=5, mfc="none",
                         color=colour)
         if not np.isfinite(table.loc[table["quantity"] == name, "mean"]
