@@ -154,8 +154,9 @@ def test_value_only_and_value_with_gradient_are_one_computation():
     mesh = icosphere(2)
     X = 0.9 * mesh.X
     p = Bending.from_mesh(mesh)._plan
-    v0, G0 = kernels.juelicher(X, p.HT, p.FT, 1.0, 2.0, False)
-    v1, G1 = kernels.juelicher(X, p.HT, p.FT, 1.0, 2.0, True)
+    c0 = np.full(mesh.n_vertices, 2.0)
+    v0, G0 = kernels.juelicher(X, p.HT, p.FT, 1.0, c0, False)
+    v1, G1 = kernels.juelicher(X, p.HT, p.FT, 1.0, c0, True)
     assert v0 == v1 and G0.shape == (0, 3) and G1.shape == X.shape
 
 

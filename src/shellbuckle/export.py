@@ -11,9 +11,10 @@ Fields written with the mesh (where the format keeps them), all at the exported 
 - point data ``H`` (V,): discrete mean curvature ``H = (c1 + c2)/2`` of the run's own bending
   discretization (Jülicher's ``M_i/A_i`` or Evolver's ``star_perp`` ``h``), ``1/R`` on the
   initial sphere, negative where the surface is inverted; units ``1/R``;
-- point data ``displacement`` (V, 3) ``X - X0`` from the initial sphere (PLY: three scalars
+- point data ``displacement`` (V, 3) ``X - X0`` from the stress-free shape, the initial sphere
+  unless the run has a shape imperfection (PLY: three scalars
   ``displacement_x``, ``displacement_y``, ``displacement_z``); units ``R``;
-- point data ``bending_energy_density`` (V,): ``kappa/2 (2 H - c0)^2``, bending energy per area
+- point data ``bending_energy_density`` (V,): ``kappa/2 (2 H - c0_i)^2``, bending energy per area
   at each vertex (the integrand of ``E_bend``); units ``kappa/R^2``;
 - cell data ``stretching_energy_density`` (F,): membrane energy per rest area of each
   constant-strain triangle, ``A/(2(1+nu)) [Tr(e^2) + nu/(1-nu) (Tr e)^2]``; summed with the
@@ -21,9 +22,10 @@ Fields written with the mesh (where the format keeps them), all at the exported 
 
 The ``.fe`` file (:func:`shellbuckle.mesh.evolver_io.write_evolver`) carries the run's moduli
 (``linear_elastic`` modulus ``A``, ``poisson_ratio = nu``, ``star_perp_sq_mean_curvature``
-modulus ``2 kappa``, ``h_zero = c0/2`` with the protocol's ``c0``, default ``2/R``), the rest
-metrics ``form_factors`` of the initial sphere (or the run's own rest state when it was started
-from a Surface Evolver file) and the body volume of the exported step as its target volume.
+modulus ``2 kappa``, ``h_zero = c0/2`` with the protocol's ``c0``, default ``2/R``, a vertex
+attribute for a shell with a shape imperfection), the rest metrics ``form_factors`` of the
+stress-free shape (or the run's own rest state when it was started from a Surface Evolver
+file) and the body volume of the exported step as its target volume.
 Its ``linear_elastic`` energy equals the table's ``E_stretch``; its bending energy equals the
 table's ``E_bend`` for a run made with ``bending="evolver"`` (a Jülicher run reports a
 different discretization of the same integral).
@@ -79,12 +81,16 @@ def resolve_step(run, step) -> int:
 class RunFields:
     """Surface fields of a run's conformations, with the run's own energy terms built once.
 
-    ``X0 (V, 3)`` initial sphere, ``faces (F, 3)``, ``stretching``
+    ``X0 (V, 3)`` the stress-free shape (the initial sphere, or the imperfect surface of a
+    shape imperfection, :meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`),
+    ``faces (F, 3)``, ``stretching``
     (:class:`~shellbuckle.energies.stretching.Stretching` with the run's rest state),
     ``bending`` (the run's bending term, Jülicher or Evolver ``star_perp``), ``kappa``,
-    ``c0`` (convention ``c = c1 + c2``; the protocol's value, ``2/R`` when it gave none) and
+    ``c0`` (convention ``c = c1 + c2``; the protocol's value, ``2/R`` when it gave none),
+    ``c0_vertices (V,)`` the spontaneous curvature of each vertex where it varies (a shape
+    imperfection; else None) and
     ``form_factors (F, 3)``: the rest metrics ``(s.s, s.t, t.t)`` of each face (``s = x1 - x0``,
-    ``t = x2 - x0`` in the rest shape), i.e. of the initial sphere, or those the run was
+    ``t = x2 - x0`` in the rest shape), i.e. of the stress-free shape, or those the run was
     started with (a run from a Surface Evolver file).
     """
 
@@ -95,6 +101,7 @@ class RunFields:
     bending: object
     kappa: float
     c0: float
+    c0_vertices: np.ndarray | None = None
 
     @classmethod
     def of(cls, run) -> "RunFields":
@@ -105,18 +112,19 @@ class RunFields:
         run = _open(run)
         params, protocol = run.params, run.protocol
         c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
-        X0 = np.asarray(run.store.X0, dtype=np.float64)
-        mesh = Mesh.from_arrays(X0, run.faces)
+        mesh = Mesh.from_arrays(np.asarray(run.store.X0, dtype=np.float64), run.faces)
+        X0, profile = protocol.stress_free(mesh.X)
         form_factors = run.store.rest.get("form_factors")
-        energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0,
-                                   form_factors=form_factors)
+        energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X0,
+                                   form_factors=form_factors, c0_profile=profile)
         if form_factors is None:
             s = X0[mesh.faces[:, 1]] - X0[mesh.faces[:, 0]]
             t = X0[mesh.faces[:, 2]] - X0[mesh.faces[:, 0]]
             form_factors = np.stack([(s * s).sum(1), (s * t).sum(1), (t * t).sum(1)], axis=1)
         return cls(X0=X0, faces=mesh.faces, form_factors=np.asarray(form_factors, np.float64),
                    stretching=energy.stretching,
-                   bending=energy.bending, kappa=float(params.kappa_helfrich), c0=c0)
+                   bending=energy.bending, kappa=float(params.kappa_helfrich), c0=c0,
+                   c0_vertices=None if profile is None else energy.bending.c0_vertices)
 
     def mean_curvature(self, X) -> np.ndarray:
         """Vertex mean curvature ``H = (c1 + c2)/2`` of the run's bending discretization, (V,)."""
@@ -126,14 +134,15 @@ class RunFields:
         """Bending energy per area at each vertex, ``kappa_H/2 (2 H - c0)^2`` (``kappa_H`` the
         helfrich modulus of the run's energy convention), shape (V,)."""
         H = self.mean_curvature(X) if H is None else H
-        return 0.5 * self.kappa * (2.0 * H - self.c0) ** 2
+        c0 = self.c0 if self.c0_vertices is None else self.c0_vertices
+        return 0.5 * self.kappa * (2.0 * H - c0) ** 2
 
     def stretching_density(self, X) -> np.ndarray:
         """Membrane energy per rest area of each face, shape (F,)."""
         return np.asarray(self.stretching.density(X), dtype=np.float64)
 
     def displacement(self, X) -> np.ndarray:
-        """``X - X0``, displacement from the initial sphere, shape (V, 3)."""
+        """``X - X0``, displacement from the stress-free shape, shape (V, 3)."""
         return np.asarray(X, dtype=np.float64) - self.X0
 
 
@@ -286,7 +295,8 @@ def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path
     if params.energy_convention != "helfrich":
         title += (f", energy convention {params.energy_convention} (kappa = {params.kappa:.6g}:"
                   f" the helfrich modulus below is {params.kappa_helfrich:.6g})")
-    write_evolver(path, mesh, kappa=params.kappa_helfrich, c0=fields.c0, A=params.A, nu=params.nu,
+    c0 = fields.c0 if fields.c0_vertices is None else fields.c0_vertices
+    write_evolver(path, mesh, kappa=params.kappa_helfrich, c0=c0, A=params.A, nu=params.nu,
                   form_factors=fields.form_factors, volume=volume, title=title)
     log.info("step %d of %s written to %s", step, run.path, path)
     return path

@@ -56,6 +56,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
             c0: float | None = None, prerelax: bool = True, direct_return: bool = True,
             smooth_jiggle: float | None = None, smooth_degree: int | None = None,
+            shape_imperfection: float | None = None, shape_degree: int | None = None,
             out=None,
             progress: bool = False, max_steps: int | None = None,
             form_factors=None, pressures=None, threads: int | None = None,
@@ -74,6 +75,10 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     0.05, sigma = 0.028 R) or ``jiggle`` times the mean edge length, or the smooth
     imperfection of rms ``smooth_jiggle`` (units of R) up to degree ``smooth_degree``
     (:mod:`shellbuckle.protocol.imperfection`, the same field on any mesh); give at most one.
+    ``shape_imperfection`` (units of R) and ``shape_degree`` make the shell itself imperfect:
+    its stress-free shape is the sphere moved radially by a seeded field of that rms, the same
+    shell on any mesh (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`); the run
+    starts there, whatever the jiggle (``smooth_jiggle=0`` for none).
     ``max_iter`` bounds each minimization (Newton steps, i.e. factorizations, with Newton's
     method; iterations with the others): with ``method="cg"`` or ``"gd"``
     a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
@@ -113,6 +118,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     elif smooth_degree is not None:
         raise ValueError("smooth_degree needs smooth_jiggle (the amplitude of the smooth "
                          "imperfection)")
+    if shape_imperfection is not None or shape_degree is not None:
+        options.update(shape_imperfection=shape_imperfection, shape_degree=shape_degree)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")

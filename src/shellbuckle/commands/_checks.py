@@ -137,6 +137,14 @@ RANGES = {
                            "imperfection, not a new shape"),
     "smooth_jiggle_d": Range(0, 1000, reason="in units of the thickness d; d/R times it must "
                              "lie in [0, 0.1] (units of R), which is checked next"),
+    "shape_imperfection": Range(0, 0.1, reason="the rms radial displacement of the stress-free "
+                                "shape in units of R: an imperfection, not a new shape"),
+    "shape_imperfection_d": Range(0, 1000, reason="in units of the thickness d; d/R times it "
+                                  "must lie in [0, 0.1] (units of R), which is checked next"),
+    "shape_degree": Range(2, 400, integer=True,
+                          reason="degree 0 is a volume change and 1 a translation; at 400 the "
+                                 f"mesh that resolves it needs about {MAX_VERTICES} vertices; "
+                                 "the mesh's own limit is checked next"),
     "smooth_degree": Range(2, 400, integer=True,
                            reason="degree 0 is a volume change and 1 a translation; at 400 the "
                                   f"mesh that resolves it needs about {MAX_VERTICES} vertices; "
@@ -381,19 +389,20 @@ def degree_resolved(n_vertices: int) -> int:
 
 
 def check_smooth_degree(option: str, text, degree: int, n_vertices: int,
-                        mesh: str = "the mesh") -> None:
-    """``ValueError`` when a mesh of ``n_vertices`` cannot resolve the smooth imperfection of
-    highest degree ``degree`` (:func:`degree_resolved`)."""
+                        mesh: str = "the mesh", kind: str = "smooth") -> None:
+    """``ValueError`` when a mesh of ``n_vertices`` cannot resolve the ``kind`` (``smooth`` or
+    ``shape``) imperfection of highest degree ``degree`` (:func:`degree_resolved`)."""
     from ..protocol.imperfection import EDGES_PER_WAVELENGTH
 
     best = degree_resolved(n_vertices)
     if degree <= best:
         return
     wavelength = 2.0 * math.pi / degree
-    default = "" if option == "--smooth-degree" else \
-        f" (the default --smooth-degree {degree}; give a lower one or more vertices)"
+    flag = f"--{kind}-degree"
+    default = "" if option == flag else \
+        f" (the default {flag} {degree}; give a lower one or more vertices)"
     raise ValueError(
-        f"{option} {_typed(text, degree)}: the mesh cannot resolve the smooth imperfection of "
+        f"{option} {_typed(text, degree)}: the mesh cannot resolve the {kind} imperfection of "
         f"degree L = {degree}{default}: its shortest wavelength 2 pi R/L = {wavelength:.3g} R "
         f"needs {EDGES_PER_WAVELENGTH} edges of at most {wavelength / EDGES_PER_WAVELENGTH:.3g} "
         f"R, and {mesh} has a mean edge of {mean_edge(n_vertices):.3g} R (it resolves "

@@ -148,6 +148,7 @@ def protocol_defaults() -> dict:
             if p.default is not inspect.Parameter.empty}
     out["temperature"] = DEFAULT_TEMPERATURE
     out["smooth_degree"] = DEFAULT_DEGREE
+    out["shape_degree"] = DEFAULT_DEGREE
     return out
 
 
@@ -193,6 +194,18 @@ def _options() -> dict:
                 "mean edges per wavelength", f"default {d['smooth_degree']}: it holds the "
                 "classical buckling degree gamma^(1/4) up to gamma = 1.6e5, and the paper's "
                 "3594-vertex mesh resolves it", type=int, range="smooth_degree"),
+        _Option("--shape-imperfection", "shape_imperfection", "an imperfect shell, the same "
+                "on any mesh: its stress-free shape (rest state and spontaneous curvature) is "
+                "the sphere with each material point moved radially by a seeded random field of "
+                "spherical harmonics of degrees 2 to --shape-degree with equal power per "
+                "degree, of this rms amplitude in units of R; the run starts there; combine "
+                "with --smooth-jiggle 0 for no jiggle", range="shape_imperfection"),
+        _Option("--shape-imperfection-d", "shape_imperfection_d", "the rms amplitude of "
+                "--shape-imperfection in units of the shell thickness d; stored in units of R",
+                range="shape_imperfection_d"),
+        _Option("--shape-degree", "shape_degree", "highest degree L of the shape imperfection; "
+                "the mesh must resolve it with 4 mean edges per wavelength",
+                f"default {d['shape_degree']}", type=int, range="shape_degree"),
         _Option("--bending", "bending", "bending discretization, one of "
                 f"{', '.join(BENDING_KINDS)}", f"default {d['bending']}; a Surface Evolver "
                 "--mesh file that bends with star_perp_sq_mean_curvature brings evolver",
@@ -219,8 +232,8 @@ def _options() -> dict:
 def add_protocol_options(parser, names, *, listed: bool = False, inherited: bool = False,
                          flags: dict | None = None, ranges: dict | None = None) -> None:
     """Add the protocol options ``names`` (Protocol fields, plus ``dv``, ``until``,
-    ``schedule``, ``pressures``, ``smooth_jiggle_d``) to ``parser``; each defaults to None. ``listed``: as
-    comma-separated lists (a sweep's axes). ``inherited``: a continued run keeps the stored
+    ``schedule``, ``pressures``, ``smooth_jiggle_d``, ``shape_imperfection_d``) to ``parser``;
+    each defaults to None. ``listed``: as comma-separated lists (a sweep's axes). ``inherited``: a continued run keeps the stored
     run's value of an option left out, which the help says. ``flags`` renames options
     (a sweep's ``{"seed": "--seeds"}``). ``ranges`` replaces the range of an option
     (:data:`._checks.RANGES`; ``{"dv": "dv_signed"}`` where a negative step re-inflates)."""

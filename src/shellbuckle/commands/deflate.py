@@ -17,10 +17,15 @@ from ._options import (add_protocol_options, add_run_output_options, add_shell_o
 #: The protocol options of a deflation (Protocol fields, and dv, until, schedule, pressures,
 #: smooth_jiggle_d).
 PROTOCOL = ("seed", "dv", "until", "schedule", "pressures", "c0_cycle", "temperature", "jiggle",
-            "smooth_jiggle", "smooth_jiggle_d", "smooth_degree", "bending", "method",
+            "smooth_jiggle", "smooth_jiggle_d", "smooth_degree", "shape_imperfection",
+            "shape_imperfection_d", "shape_degree", "bending", "method",
             "max_iter", "c0", "prerelax", "direct_return")
 #: The options of the smooth imperfection, which replaces the per-vertex jiggle.
 SMOOTH = ("smooth_jiggle", "smooth_jiggle_d", "smooth_degree")
+#: The options of the shape imperfection (the stress-free shape of a new shell).
+SHAPE = ("shape_imperfection", "shape_imperfection_d", "shape_degree")
+#: Options given in units of the thickness, stored in units of R under the other name.
+IN_D = {"smooth_jiggle_d": "smooth_jiggle", "shape_imperfection_d": "shape_imperfection"}
 #: Options of a new shell or mesh, which a continued run takes from the stored one.
 NEW_SHELL = ("gamma", "nu", "E", "sigma", "d", "R", "energy_convention", "vertices",
              "icosphere", "mesh", "pressures", "bending", "c0")
@@ -69,12 +74,13 @@ def _cmd(args) -> int:
     if args.from_run is not None:
         from .continue_ import continue_run
 
-        for name in SMOOTH:
+        for name in SMOOTH + SHAPE:
             if getattr(args, name) is not None:
                 flag = "--" + name.replace("_", "-")
+                kept = "jiggle" if name in SMOOTH else "shell"
                 raise ValueError(f"{flag} {typed(args, flag, getattr(args, name))}: allowed: "
-                                 "without --from (a continued run keeps the stored run's "
-                                 "jiggle)")
+                                 f"without --from (a continued run keeps the stored run's "
+                                 f"{kept})")
         return continue_run(_as_continue(args))
     from ..run import deflate
 
@@ -86,7 +92,11 @@ def _cmd(args) -> int:
                                      options)
     options.setdefault("bending", from_file.get("bending"))
     options.setdefault("c0", from_file.get("c0"))
-    options = {k: v for k, v in options.items() if v is not None and k != "smooth_jiggle_d"}
+    if from_file.get("form_factors") is not None and options.get("shape_imperfection"):
+        flag = "--shape-imperfection" + ("-d" if "shape_imperfection_d" in options else "")
+        raise ValueError(f"{flag} {typed(args, flag)}: allowed: without a --mesh file that "
+                         f"brings its own rest state (form_factors); {args.mesh} does")
+    options = {k: v for k, v in options.items() if v is not None and k not in IN_D}
     run = deflate(mesh, params, out=args.out, progress=not args.quiet,
                   form_factors=from_file.get("form_factors"), threads=args.threads, **located,
                   **options)
@@ -122,9 +132,10 @@ def _protocol(args) -> dict:
                          f"--dv {typed(args, '--dv', dv)} and below 0.99")
     check_steps("--dv", typed(args, "--dv", dv), until / dv)
     fields = {k: v for k, v in options.items() if k not in ("dv", "until", "schedule",
-                                                           "pressures", "smooth_jiggle_d")}
-    if "smooth_jiggle_d" in options:  # its value in units of R needs the shell: _check_smooth
-        fields["smooth_jiggle"] = 0.0
+                                                           "pressures", *IN_D)}
+    for name, field in IN_D.items():
+        if name in options:  # its value in units of R needs the shell: _check_smooth
+            fields[field] = 0.0
     if options.get("pressures") is not None:
         Protocol(schedule=tuple(options["pressures"]), control="pressure", **fields)
     elif options.get("schedule") is not None:
@@ -154,6 +165,15 @@ def _check_smooth_options(args, options: dict) -> None:
         raise ValueError(f"--smooth-degree {typed(args, '--smooth-degree')}: allowed: only "
                          "with --smooth-jiggle or --smooth-jiggle-d (the highest degree of the "
                          "smooth imperfection)")
+    if "shape_imperfection" in options and "shape_imperfection_d" in options:
+        raise ValueError(f"--shape-imperfection-d {typed(args, '--shape-imperfection-d')}: give "
+                         "either --shape-imperfection (units of R) or --shape-imperfection-d "
+                         "(units of the thickness d), not both")
+    if "shape_degree" in options and not ({"shape_imperfection", "shape_imperfection_d"}
+                                          & set(options)):
+        raise ValueError(f"--shape-degree {typed(args, '--shape-degree')}: allowed: only with "
+                         "--shape-imperfection or --shape-imperfection-d (the highest degree of "
+                         "the shape imperfection)")
 
 
 def _shell(args, seed: int, options: dict):
@@ -211,25 +231,30 @@ def _check_shell(args, params, n: int, mesh: str, options: dict) -> None:
 
 
 def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
+    """The smooth and shape imperfections: amplitudes in units of the thickness converted to
+    units of R and checked, and the mesh resolving their degree."""
     from ..protocol.imperfection import DEFAULT_DEGREE
 
-    if options.get("smooth_jiggle_d") is not None:
-        value = options["smooth_jiggle_d"] * params.d_over_R
-        if RANGES["smooth_jiggle"].problem(value):
-            raise ValueError(f"--smooth-jiggle-d {typed(args, '--smooth-jiggle-d')}: gives an rms "
-                             f"amplitude of {value:.4g} R at d/R = {params.d_over_R:.4g}; "
-                             f"{allowed('smooth_jiggle')}")
-        options["smooth_jiggle"] = value
-    if options.get("smooth_jiggle") is None:
-        return
-    if options.get("smooth_degree") is not None:
-        option, text = "--smooth-degree", typed(args, "--smooth-degree")
-    else:
-        option = "--smooth-jiggle-d" if options.get("smooth_jiggle_d") is not None \
-            else "--smooth-jiggle"
-        text = typed(args, option)
-    check_smooth_degree(option, text, options.get("smooth_degree") or DEFAULT_DEGREE, n,
-                        mesh=mesh)
+    for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
+        in_d = amplitude + "_d"
+        flag_d = "--" + in_d.replace("_", "-")
+        if options.get(in_d) is not None:
+            value = options[in_d] * params.d_over_R
+            if RANGES[amplitude].problem(value):
+                raise ValueError(f"{flag_d} {typed(args, flag_d)}: gives an rms amplitude of "
+                                 f"{value:.4g} R at d/R = {params.d_over_R:.4g}; "
+                                 f"{allowed(amplitude)}")
+            options[amplitude] = value
+        if options.get(amplitude) is None:
+            continue
+        degree = kind + "_degree"
+        if options.get(degree) is not None:
+            option = "--" + degree.replace("_", "-")
+        else:
+            option = flag_d if options.get(in_d) is not None \
+                else "--" + amplitude.replace("_", "-")
+        check_smooth_degree(option, typed(args, option), options.get(degree) or DEFAULT_DEGREE,
+                            n, mesh=mesh, kind=kind)
 
 
 def _as_continue(args):

@@ -19,6 +19,11 @@ the two faces of edge ``e`` (positive where convex, :mod:`.hinge`) and ``l_e`` i
     E   = sum_i kappa/2 (2 H_i - c0)^2 A_i
         = sum_i kappa/2 (4 M_i^2 / A_i - 4 c0 M_i + c0^2 A_i).
 
+A shell whose stress-free shape is not a sphere (:mod:`shellbuckle.protocol.imperfection`,
+"Shape imperfection") has a spontaneous curvature per vertex, ``c0_i = c0 p_i`` with a fixed
+profile ``p_i`` (``c0 = 2/R`` gives the stress-free shape's curvature ``2 p_i / R``; ``c0 = 0``
+gives zero everywhere, as the c0 cycle needs); the formulas below hold vertex by vertex.
+
 ``sum_i M_i = 1/2 sum_e l_e theta_e`` is the exact integrated mean curvature of a convex
 polyhedron (Steiner). References: F. Jülicher, "The morphology of vesicles of higher
 topological genus: conformal degeneracy and conformal modes", J. Phys. II France 6, 1797
@@ -76,8 +81,11 @@ class Bending:
     ``faces (F, 3)`` and ``hinges (E, 4)`` as in :class:`shellbuckle.mesh.Topology` (closed,
     outward oriented), ``n_vertices``, bending modulus ``kappa`` (energy) and spontaneous
     curvature ``c0`` in the convention ``c = c1 + c2`` (``c0 = 2/R`` for a stress-free sphere
-    of radius ``R``; ``c0 = 0`` gives ``8 pi kappa`` on any sphere). Build it with
-    :meth:`from_mesh`; change ``c0`` with :meth:`with_c0`, which shares the precomputed plan.
+    of radius ``R``; ``c0 = 0`` gives ``8 pi kappa`` on any sphere). ``c0_profile (V,)``, if
+    given, makes the spontaneous curvature of vertex ``i`` ``c0 * c0_profile[i]`` (a shell
+    whose stress-free shape is not a sphere; module docstring). Build it with
+    :meth:`from_mesh`; change ``c0`` with :meth:`with_c0`, which shares the precomputed plan
+    and keeps the profile.
     """
 
     faces: np.ndarray
@@ -85,7 +93,9 @@ class Bending:
     n_vertices: int
     kappa: float = 1.0
     c0: float = 2.0
+    c0_profile: np.ndarray | None = None
     _plan: "_Plan" = field(default=None, repr=False)
+    _c0v: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
         kappa, c0 = float(self.kappa), float(self.c0)
@@ -109,16 +119,25 @@ class Bending:
             object.__setattr__(self, "hinges", np.ascontiguousarray(HT.T))
             object.__setattr__(self, "n_vertices", n)
             object.__setattr__(self, "_plan", _Plan(FT, HT, n))
+        object.__setattr__(self, "_c0v", c0_per_vertex(c0, self.c0_profile, self.n_vertices))
 
     @classmethod
-    def from_mesh(cls, mesh_or_topology, kappa: float = 1.0, c0: float = 2.0) -> "Bending":
+    def from_mesh(cls, mesh_or_topology, kappa: float = 1.0, c0: float = 2.0,
+                  c0_profile=None) -> "Bending":
         """From a :class:`~shellbuckle.mesh.Mesh` or a :class:`~shellbuckle.mesh.Topology`."""
         t = getattr(mesh_or_topology, "topology", mesh_or_topology)
-        return cls(faces=t.faces, hinges=t.hinges, n_vertices=t.n_vertices, kappa=kappa, c0=c0)
+        return cls(faces=t.faces, hinges=t.hinges, n_vertices=t.n_vertices, kappa=kappa, c0=c0,
+                   c0_profile=c0_profile)
 
     def with_c0(self, c0: float) -> "Bending":
-        """The same term with spontaneous curvature ``c0`` (convention ``c = c1 + c2``)."""
+        """The same term with spontaneous curvature ``c0`` (convention ``c = c1 + c2``; times
+        the profile, if any)."""
         return dataclasses.replace(self, c0=c0)
+
+    @property
+    def c0_vertices(self) -> np.ndarray:
+        """The spontaneous curvature of each vertex, ``c0`` times the profile, ``(V,)``."""
+        return self._c0v.copy()
 
     # ------------------------------------------------------------------ per-vertex quantities
 
@@ -141,23 +160,23 @@ class Bending:
         return M / A
 
     def vertex_energy(self, X) -> np.ndarray:
-        """Bending energy of each vertex, ``kappa/2 (2 H_i - c0)^2 A_i``, shape ``(V,)``."""
+        """Bending energy of each vertex, ``kappa/2 (2 H_i - c0_i)^2 A_i``, shape ``(V,)``."""
         M, A = self._MA(self._XT(X))
-        return 0.5 * self.kappa * (2.0 * M / A - self.c0) ** 2 * A
+        return 0.5 * self.kappa * (2.0 * M / A - self._c0v) ** 2 * A
 
     # ------------------------------------------------------------------ energy interface
 
     def _compiled(self, X, gradient: bool):
         """``(value, gradient or (0, 3))`` from :func:`.kernels.juelicher`."""
         p, X = self._plan, kernels.positions(X, self.n_vertices)
-        value, G = kernels.juelicher(X, p.HT, p.FT, self.kappa, self.c0, gradient)
+        value, G = kernels.juelicher(X, p.HT, p.FT, self.kappa, self._c0v, gradient)
         return float(value), G
 
     def value(self, X) -> float:
         return self._compiled(X, False)[0]
 
     def _weights(self, M, A):
-        p, kappa, c0 = self._plan, self.kappa, self.c0
+        p, kappa, c0 = self._plan, self.kappa, self._c0v
         H = M / A
         f_M = 2.0 * kappa * (2.0 * H - c0)
         f_A = 0.5 * kappa * (c0 * c0 - 4.0 * H * H)
@@ -180,11 +199,23 @@ class Bending:
         p, X = self._plan, kernels.positions(X, self.n_vertices)
         p.prepare_hessian()
         s = p.pattern
-        data = kernels.juelicher_hessian(X, p.HT, p.FT, self.kappa, self.c0, p.hinge_off,
+        data = kernels.juelicher_hessian(X, p.HT, p.FT, self.kappa, self._c0v, p.hinge_off,
                                          p.face_off, p.hinge_slot, p.face_slot, s.star_ptr,
                                          s.star_member, s.star_sq_ptr, s.star_off, s.stride,
                                          s.mirror, np.empty(s.n_data))
         return s.matrix(data)
+
+
+def c0_per_vertex(c0: float, profile, n_vertices: int) -> np.ndarray:
+    """The spontaneous curvature of each vertex, ``c0 * profile`` (``(V,)``; ``c0``
+    everywhere without a profile)."""
+    if profile is None:
+        return np.full(int(n_vertices), float(c0))
+    p = np.asarray(profile, dtype=np.float64)
+    if p.shape != (int(n_vertices),) or not np.isfinite(p).all():
+        raise ValueError(f"c0_profile must be a ({int(n_vertices)},) array of finite numbers, "
+                         f"got shape {p.shape}")
+    return float(c0) * p
 
 
 class StarPattern:

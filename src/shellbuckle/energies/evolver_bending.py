@@ -62,7 +62,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import kernels
-from .bending import StarPattern
+from .bending import StarPattern, c0_per_vertex
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +90,9 @@ class StarPerpBending:
         (Evolver's ``h_zero`` parameter or vertex attribute is ``c0 / 2``).
     vertices : (k,) int or None
         Vertices whose term is counted (a non-global Evolver quantity); ``None`` means all.
+    c0_profile : (V,) array or None
+        Multiplies ``c0`` vertex by vertex (a shell whose stress-free shape is not a sphere,
+        :class:`.bending.Bending`); kept by ``with_c0``.
     """
 
     faces: np.ndarray
@@ -97,6 +100,7 @@ class StarPerpBending:
     kappa: float = 1.0
     c0: float | np.ndarray = 2.0
     vertices: np.ndarray | None = None
+    c0_profile: np.ndarray | None = None
     _tables: dict | None = field(default=None, repr=False)
     """Topology tables (faces coordinate-major; the Hessian's pattern once built), shared by the
     copies that ``dataclasses.replace`` makes (``with_c0`` in the c0 cycle), as
@@ -116,6 +120,8 @@ class StarPerpBending:
             c0 = np.full(V, float(c0))
         if c0.shape != (V,) or not np.isfinite(c0).all():
             raise ValueError(f"c0 must be a finite number or a ({V},) array of finite numbers")
+        if self.c0_profile is not None:
+            c0 = c0_per_vertex(1.0, self.c0_profile, V) * c0
         weight = np.ones(V)
         if self.vertices is not None:
             chosen = np.asarray(self.vertices, dtype=np.int64)
@@ -144,6 +150,11 @@ class StarPerpBending:
     def modulus(self) -> float:
         """Evolver's quantity modulus, ``2 kappa``."""
         return 2.0 * float(self.kappa)
+
+    @property
+    def c0_vertices(self) -> np.ndarray:
+        """The spontaneous curvature of each vertex, ``2 h_zero``, ``(V,)``."""
+        return 2.0 * self._h0
 
     @property
     def h_zero(self) -> np.ndarray:

@@ -105,11 +105,11 @@ def _juelicher_elements(X, HT, FT, gradient):
 
 @njit(cache=True, nogil=True)
 def juelicher(X, HT, FT, kappa, c0, gradient):
-    """Jülicher bending energy ``sum_i kappa/2 (2 M_i/A_i - c0)^2 A_i`` and its gradient
+    """Jülicher bending energy ``sum_i kappa/2 (2 M_i/A_i - c0_i)^2 A_i`` and its gradient
     (:mod:`.bending` for the formulas, :func:`.hinge.hinge_kernel` and
     :func:`.hinge.face_kernel` for the element derivatives). ``HT (4, E)`` hinges
     ``(i, j, k, l)`` with edge ``i -> j``, ``FT (3, F)`` faces. Returns ``(value, G)``; ``G``
-    is ``(0, 3)`` without ``gradient``."""
+    is ``(0, 3)`` without ``gradient``; ``c0 (V,)`` the spontaneous curvature of each vertex."""
     V, nh, nf = X.shape[0], HT.shape[1], FT.shape[1]
     M, A, dphi, dA = _juelicher_elements(X, HT, FT, gradient)
     f_M = np.empty(V if gradient else 0)
@@ -118,10 +118,10 @@ def juelicher(X, HT, FT, kappa, c0, gradient):
     for v in range(V):
         Av = A[v] / 3.0
         H = 0.25 * M[v] / Av
-        value += (2.0 * H - c0) ** 2 * Av
+        value += (2.0 * H - c0[v]) ** 2 * Av
         if gradient:
-            f_M[v] = 2.0 * kappa * (2.0 * H - c0)
-            f_A[v] = 0.5 * kappa * (c0 * c0 - 4.0 * H * H)
+            f_M[v] = 2.0 * kappa * (2.0 * H - c0[v])
+            f_A[v] = 0.5 * kappa * (c0[v] * c0[v] - 4.0 * H * H)
     value *= 0.5 * kappa
     G = np.zeros((V if gradient else 0, 3))
     if gradient:
@@ -352,7 +352,8 @@ def _mirror_mean(data, mirror):
 @njit(cache=True, nogil=True)
 def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, face_slot,
                       star_ptr, star_member, star_sq_ptr, star_off, stride, mirror, data):
-    """Exact Hessian of :func:`juelicher`, added into the CSR ``data`` of a fixed pattern.
+    """Exact Hessian of :func:`juelicher` (``c0 (V,)`` per vertex), added into the CSR ``data``
+    of a fixed pattern.
 
     ``Hess E = sum_e w_e Hess(l_e theta_e) + sum_f u_f Hess(area_f)
     + sum_i (4 kappa / A_i) g_i g_i^T`` (:mod:`.bending`; element Hessians as in
@@ -376,8 +377,8 @@ def juelicher_hessian(X, HT, FT, kappa, c0, hinge_off, face_off, hinge_slot, fac
     for v in range(V):
         Av = A[v] / 3.0
         H[v] = 0.25 * M[v] / Av
-        f_M[v] = 2.0 * kappa * (2.0 * H[v] - c0)
-        f_A[v] = 0.5 * kappa * (c0 * c0 - 4.0 * H[v] * H[v])
+        f_M[v] = 2.0 * kappa * (2.0 * H[v] - c0[v])
+        f_A[v] = 0.5 * kappa * (c0[v] * c0[v] - 4.0 * H[v] * H[v])
         star_w[v] = 4.0 * kappa / Av
     # pass 2: w_e Hess(phi_e), the low-rank form of hinge.HingeHessian for phi = L theta
     B = np.empty((4, 4, 3, 3))

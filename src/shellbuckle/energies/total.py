@@ -21,14 +21,16 @@ BENDING_KINDS = ("juelicher", "evolver")
 Evolver's ``star_perp_sq_mean_curvature``."""
 
 
-def make_bending(kind: str, mesh, kappa: float, c0: float):
-    """Bending term of kind ``"juelicher"`` (default) or ``"evolver"``."""
+def make_bending(kind: str, mesh, kappa: float, c0: float, c0_profile=None):
+    """Bending term of kind ``"juelicher"`` (default) or ``"evolver"``; ``c0_profile (V,)``
+    multiplies ``c0`` vertex by vertex (:class:`.bending.Bending`)."""
     if kind == "juelicher":
-        return Bending.from_mesh(mesh, kappa=kappa, c0=c0)
+        return Bending.from_mesh(mesh, kappa=kappa, c0=c0, c0_profile=c0_profile)
     if kind == "evolver":
         from .evolver_bending import StarPerpBending
 
-        return StarPerpBending(mesh.faces, mesh.n_vertices, kappa=kappa, c0=c0)
+        return StarPerpBending(mesh.faces, mesh.n_vertices, kappa=kappa, c0=c0,
+                               c0_profile=c0_profile)
     raise ValueError(f"bending must be one of {', '.join(BENDING_KINDS)}, got {kind!r}")
 
 
@@ -48,12 +50,14 @@ class ShellEnergy:
 
     @classmethod
     def build(cls, mesh, params, *, bending: str = "juelicher", c0: float | None = None,
-              reference=None, form_factors=None) -> "ShellEnergy":
+              reference=None, form_factors=None, c0_profile=None) -> "ShellEnergy":
         """Energy of ``mesh`` for :class:`~shellbuckle.params.ShellParameters` ``params``.
 
         The stretching rest state is ``form_factors (F, 3)`` (Surface Evolver's rest metrics)
         if given, else the shape of ``reference`` (positions, default ``mesh.X``: the
-        stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere). The
+        stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere), times
+        ``c0_profile (V,)`` vertex by vertex if given (a stress-free shape that is not a
+        sphere, :func:`~shellbuckle.protocol.imperfection.curvature_profile`). The
         bending term has the modulus ``params.kappa_helfrich`` of the parameters' energy
         convention (``params.kappa`` under the default helfrich convention).
         """
@@ -65,7 +69,8 @@ class ShellEnergy:
         else:
             X0 = mesh.X if reference is None else np.asarray(reference, float)
             stretching = Stretching.from_reference(X0, t.faces, t.n_vertices, params.A, params.nu)
-        return cls(stretching, make_bending(bending, mesh, params.kappa_helfrich, c0))
+        return cls(stretching, make_bending(bending, mesh, params.kappa_helfrich, c0,
+                                            c0_profile))
 
     @property
     def c0(self) -> float:

@@ -119,7 +119,7 @@ def _table_payload(table) -> dict:
 
 def _energy(run):
     """The run's own energy terms and ``c0`` (c = c1 + c2; the protocol's, ``2/R`` when it
-    gave none), on its initial sphere or the rest metrics it was started with: the terms of
+    gave none), on its stress-free shape or the rest metrics it was started with: the terms of
     :class:`shellbuckle.export.RunFields`, built here from the run's values because the export
     module opens run folders and this one must not (tests/test_import_graph.py);
     tests/test_viewer.py checks that both give the same colours."""
@@ -128,10 +128,11 @@ def _energy(run):
 
     params, protocol = run.params, run.protocol
     c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
-    X0 = np.asarray(run.store.X0, dtype=np.float64)
-    energy = ShellEnergy.build(Mesh.from_arrays(X0, run.faces), params,
-                               bending=protocol.bending, c0=c0,
-                               form_factors=run.store.rest.get("form_factors"))
+    mesh = Mesh.from_arrays(np.asarray(run.store.X0, dtype=np.float64), run.faces)
+    X0, profile = protocol.stress_free(mesh.X)
+    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X0,
+                               form_factors=run.store.rest.get("form_factors"),
+                               c0_profile=profile)
     return X0, energy, c0
 
 
@@ -147,7 +148,7 @@ def _payload(run, color: str, step: int = -1) -> dict:
     V, F = len(X0), len(faces)
     P = np.stack([np.asarray(run.positions(k), dtype=np.float64) for k in steps])  # (S, V, 3)
     H = np.stack([np.asarray(energy.bending.mean_curvature(X), dtype=np.float64) for X in P])
-    bend = 0.5 * kappa * (2.0 * H - c0) ** 2  # per area at each vertex, as RunFields
+    bend = 0.5 * kappa * (2.0 * H - energy.bending.c0_vertices) ** 2  # per area, as RunFields
     strain = np.stack([np.asarray(energy.stretching.density(X), dtype=np.float64) for X in P])
     lo, hi = P.min(axis=(0, 1)), P.max(axis=(0, 1))
     span = np.where(hi - lo > 0, hi - lo, 1.0)

@@ -68,7 +68,7 @@ from ..solve.newton import ABANDONED
 from ..solve.pressure import minimize_at_pressure
 from ..solve.workspace import Workspace
 from .imperfection import (DEFAULT_DEGREE, reference_directions, reference_sphere,
-                           smooth_jiggle)
+                           smooth_jiggle, stress_free_shape)
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
                      step_rng)
 from .schedule import PAPER_DV, check_schedule, linear_schedule
@@ -161,6 +161,13 @@ class Protocol:
     however small the jiggle is against the mesh (:func:`_minimize`); runs stored before this
     option existed resume without it (a start closer than 0.3 mean edges to the step's start
     then takes quasi-Newton steps on the Hessian there, as they were made).
+    ``shape_imperfection`` (a fraction of R) makes the shell itself imperfect, once for the
+    whole run and whatever the jiggle: its stress-free shape is the reference sphere with
+    each material point moved radially by ``shape_imperfection R f(n)``, ``f`` a field of
+    degrees 2 to ``shape_degree`` (default :data:`~.imperfection.DEFAULT_DEGREE`) drawn with
+    the run's seed (rms 1), and its spontaneous curvature is that surface's curvature
+    (:meth:`stress_free`, :func:`~.imperfection.stress_free_shape`); the run starts there, and
+    ``V0`` is its volume.
     """
 
     schedule: tuple
@@ -181,6 +188,8 @@ class Protocol:
     smooth_jiggle: float | None = None
     smooth_degree: int | None = None
     relax_imperfection: bool = True
+    shape_imperfection: float | None = None
+    shape_degree: int | None = None
 
     def __post_init__(self):
         if self.control not in CONTROLS:
@@ -209,6 +218,7 @@ class Protocol:
                              f"{self.jiggle!r}) or temperature (Surface Evolver's jiggle scale, "
                              f"got {self.temperature!r}), not both")
         self._check_smooth()
+        self._check_shape()
         if self.jiggle is None and self.temperature is None and self.smooth_jiggle is None:
             object.__setattr__(self, "temperature", DEFAULT_TEMPERATURE)
         if self.jiggle is not None and not (np.isfinite(self.jiggle) and 0 <= self.jiggle <= 0.5):
@@ -253,6 +263,38 @@ class Protocol:
         object.__setattr__(self, "smooth_jiggle", float(a))
         object.__setattr__(self, "smooth_degree", int(L))
 
+    def _check_shape(self) -> None:
+        """The shape imperfection's options: an amplitude in [0, MAX_SMOOTH_JIGGLE], a degree
+        in [2, MAX_SMOOTH_DEGREE] (default DEFAULT_DEGREE) only with an amplitude."""
+        a, L = self.shape_imperfection, self.shape_degree
+        if a is None:
+            if L is not None:
+                raise ValueError(f"shape_degree (got {L!r}) is the degree of the shape "
+                                 "imperfection: give it with shape_imperfection")
+            return
+        if isinstance(a, bool) or not (isinstance(a, (int, float, np.integer, np.floating))
+                                       and 0 <= a <= MAX_SMOOTH_JIGGLE):
+            raise ValueError(f"shape_imperfection (rms radial displacement of the stress-free "
+                             f"shape in units of R) must be in [0, {MAX_SMOOTH_JIGGLE:g}], got "
+                             f"{a!r}")
+        L = DEFAULT_DEGREE if L is None else L
+        if isinstance(L, bool) or not (isinstance(L, (int, np.integer))
+                                       and 2 <= L <= MAX_SMOOTH_DEGREE):
+            raise ValueError(f"shape_degree (highest degree L of the shape imperfection) must "
+                             f"be an integer in [2, {MAX_SMOOTH_DEGREE}], got {L!r}")
+        object.__setattr__(self, "shape_imperfection", float(a))
+        object.__setattr__(self, "shape_degree", int(L))
+
+    def stress_free(self, X_reference: np.ndarray):
+        """The stress-free shape of the run's shell and the profile of its spontaneous
+        curvature: ``(X_reference, None)`` (the reference sphere) without a shape
+        imperfection, else :func:`~.imperfection.stress_free_shape` of the reference mesh,
+        drawn with the run's seed."""
+        X = np.asarray(X_reference, dtype=float)
+        if not self.shape_imperfection:
+            return X, None
+        return stress_free_shape(X, self.shape_imperfection, self.shape_degree, self.seed)
+
     @classmethod
     def paper(cls, dv: float = PAPER_DV, until: float = 0.95, **options) -> "Protocol":
         """The paper's protocol: steps of ``dv`` up to ``until`` (or self-contact)."""
@@ -264,6 +306,8 @@ class Protocol:
             del out["fixed_dV_over_V"]
         if self.smooth_jiggle is None:  # so do runs stored before the smooth imperfection
             del out["smooth_jiggle"], out["smooth_degree"]
+        if self.shape_imperfection is None:  # and before the shape imperfection
+            del out["shape_imperfection"], out["shape_degree"]
         return out
 
     @classmethod
@@ -351,6 +395,15 @@ class Context:
     fold_rings: int = FOLD_RINGS
     """Intersecting faces at most this many edges apart on the mesh are a fold, not a contact
     (:func:`fold_rings`, :func:`only_local`)."""
+    X_rest: np.ndarray | None = None
+    """The stress-free shape (:meth:`Protocol.stress_free`): the run's first state, the
+    stretching rest state and the volume ``V0``; ``mesh.X`` (the reference sphere, whose
+    vertices' directions are their material points) when None."""
+
+    @property
+    def rest(self) -> np.ndarray:
+        """The stress-free shape's positions (:attr:`X_rest`, else ``mesh.X``)."""
+        return self.mesh.X if self.X_rest is None else self.X_rest
 
 
 def state_after(step: int, X: np.ndarray, record: dict, stopped: str | None = None) -> State:
@@ -365,10 +418,12 @@ def state_after(step: int, X: np.ndarray, record: dict, stopped: str | None = No
 @one_blas_thread
 def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int | None = None,
          reproducible: bool | None = None):
-    """Build the run context and the step-0 state (the initial mesh ``mesh.X``).
+    """Build the run context and the step-0 state: the stress-free shape, which is the initial
+    mesh ``mesh.X`` or, with the protocol's shape imperfection, that mesh's vertices moved to
+    the imperfect surface (:meth:`Protocol.stress_free`).
 
-    The stretching rest state is the initial mesh, or ``form_factors`` (Surface Evolver's
-    per-face rest metrics) when given; ``V0`` is the volume of the initial mesh. ``threads``:
+    The stretching rest state is the stress-free shape, or ``form_factors`` (Surface Evolver's
+    per-face rest metrics) when given; ``V0`` is its volume. ``threads``:
     the sparse factorization's threads (default
     :func:`~shellbuckle.solve.linear.default_threads`), ``reproducible`` PARDISO's mode
     (default: reproducible on several threads, plain on one); the results depend on the mode,
@@ -378,10 +433,14 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
         threads = check_threads(threads)
     check_mode(reproducible, default_threads() if threads is None else threads)
     c0 = 2.0 / params.R if protocol.c0 is None else float(protocol.c0)
-    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0,
-                               form_factors=form_factors)
+    if form_factors is not None and protocol.shape_imperfection:
+        raise ValueError("a shape imperfection sets the rest state itself: give it or "
+                         "form_factors (Surface Evolver's rest metrics), not both")
+    X_rest, profile = protocol.stress_free(mesh.X)
+    energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X_rest,
+                               form_factors=form_factors, c0_profile=profile)
     volume = Volume(mesh.faces, mesh.n_vertices)
-    V0 = volume.value(mesh.X)
+    V0 = volume.value(X_rest)
     if not V0 > 0:
         raise ValueError(f"the reference mesh encloses a non-positive volume {V0!r}: faces must "
                          "be oriented outward")
@@ -389,9 +448,10 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
                   V0=V0, contact=ContactChecker(mesh.topology),
                   workspace=Workspace(threads=threads, reproducible=reproducible),
                   c0=c0,
-                  pinned=pinned_dofs(mesh.X),
-                  fold_rings=fold_rings(mesh.X, mesh.topology.edges, V0))
-    return ctx, State(step=0, X=np.array(mesh.X, float))
+                  pinned=pinned_dofs(X_rest),
+                  fold_rings=fold_rings(X_rest, mesh.topology.edges, V0),
+                  X_rest=None if profile is None else X_rest)
+    return ctx, State(step=0, X=np.array(X_rest, float))
 
 
 def measure(ctx: Context, X: np.ndarray, target: float, result=None, *, E_before=None,
@@ -577,7 +637,7 @@ def domain_exit(ctx: Context, X: np.ndarray, E: float | None = None, *, grad_nor
     if len(flipped):
         return (f"{len(flipped)} inverted face(s), e.g. face {int(flipped[0])}, whose normal "
                 f"points against those of its three neighbours (a triangle flipped over)")
-    scaled = ctx.energy.value(ctx.mesh.X * (V / ctx.V0) ** (1.0 / 3.0))
+    scaled = ctx.energy.value(ctx.rest * (V / ctx.V0) ** (1.0 / 3.0))
     bound = ENERGY_BOUND_FACTOR * (abs(scaled) + 8.0 * np.pi * ctx.params.kappa)
     if not E <= bound:
         return (f"energy E = {E:.6g} above the bound {bound:.6g} ({ENERGY_BOUND_FACTOR:g} "
@@ -639,7 +699,7 @@ def _tangled(ctx: Context, E: float, V_target, X_start: np.ndarray) -> bool:
     if V_target is None:
         return True
     admissible = min(ctx.energy.value(X * (V_target / ctx.volume.value(X)) ** (1.0 / 3.0))
-                     for X in (ctx.mesh.X, X_start))
+                     for X in (ctx.rest, X_start))
     return E > admissible + 0.05 * abs(admissible) + ctx.params.kappa
 
 

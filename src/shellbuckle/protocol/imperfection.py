@@ -210,3 +210,90 @@ def smooth_jiggle(X, faces, directions, amplitude: float, degree: int,
     if amplitude == 0:
         return X.copy()
     return X + smooth_displacement(X, faces, directions, amplitude, degree, rng)
+
+
+# ------------------------------------------------------------------ shape imperfection
+
+SHAPE_STREAM = 0x5348415045
+"""The random stream of the shape imperfection is ``default_rng([seed, SHAPE_STREAM])``
+(the steps' jiggles draw from ``[seed, step]``, ``[seed, step, attempt]``)."""
+
+
+def shape_coefficients(degree: int, seed: int) -> np.ndarray:
+    """The coefficients of the shape imperfection of a run with this ``seed``
+    (:func:`random_coefficients` from the stream ``[seed, SHAPE_STREAM]``): the same field,
+    and so the same shell, on every mesh made with that seed."""
+    return random_coefficients(degree, np.random.default_rng([int(seed), SHAPE_STREAM]))
+
+
+def _fd_step(degree: int) -> float:
+    """Step of the central differences of :func:`radial_graph_curvature` on the unit sphere:
+    their relative error is about ``(L delta)^2 / 12`` (3e-5), their round-off
+    ``1e-16 / delta^2`` of the field (below 1e-8 up to L = 400)."""
+    return 0.02 / max(int(degree), 10)
+
+
+def radial_graph_curvature(w, directions, radius: float, delta: float) -> np.ndarray:
+    """Total curvature ``c = c1 + c2`` (outward normal, ``2/r`` on a sphere of radius r) of
+    the surface ``x(n) = radius exp(w(n)) n`` at the unit vectors ``directions (N, 3)``;
+    ``w`` maps unit vectors ``(M, 3)`` to ``(M,)``.
+
+    With ``W(x) = w(x/|x|)`` (homogeneous of degree 0, so that its gradient at a unit vector
+    is the gradient of ``w`` on the unit sphere, and its Hessian there, restricted to the
+    tangent plane, the covariant Hessian of ``w``), the outward normal is ``N = (n - grad w)
+    / q``, ``q = sqrt(1 + |grad w|^2)``, a function of the direction only, and
+
+        c = div N = exp(-w) / radius * (2 / q - lap w / q + grad w . Hess w . grad w / q^3).
+
+    The first and second derivatives of ``W`` at each direction are central differences of
+    step ``delta`` (19 evaluations of ``w``)."""
+    n = np.asarray(directions, dtype=float)
+    N = len(n)
+    eye = np.eye(3)
+
+    def W(points):
+        return w(points / np.linalg.norm(points, axis=1)[:, None])
+
+    w0 = W(n)
+    plus = [W(n + delta * eye[i]) for i in range(3)]
+    minus = [W(n - delta * eye[i]) for i in range(3)]
+    grad = np.column_stack([(plus[i] - minus[i]) / (2.0 * delta) for i in range(3)])
+    hess = np.empty((N, 3, 3))
+    for i in range(3):
+        hess[:, i, i] = (plus[i] - 2.0 * w0 + minus[i]) / delta ** 2
+        for j in range(i + 1, 3):
+            d = delta * (eye[i] + eye[j]), delta * (eye[i] - eye[j])
+            hess[:, i, j] = hess[:, j, i] = (W(n + d[0]) - W(n + d[1]) - W(n - d[1])
+                                             + W(n - d[0])) / (4.0 * delta ** 2)
+    grad2 = np.einsum("ni,ni->n", grad, grad)
+    q = np.sqrt(1.0 + grad2)
+    laplacian = np.trace(hess, axis1=1, axis2=2)
+    along = np.einsum("ni,nij,nj->n", grad, hess, grad)
+    return np.exp(-w0) / float(radius) * (2.0 / q - laplacian / q + along / q ** 3)
+
+
+def stress_free_shape(X_reference, amplitude: float, degree: int, seed: int):
+    """The stress-free shape of a shell with a shape imperfection, and its curvature.
+
+    The surface ``x(n) = c + R (1 + a f(n)) n`` over the reference sphere (centre ``c``,
+    radius ``R``, :func:`reference_sphere`), with ``f`` the field of :func:`shape_coefficients`
+    (rms 1 over the sphere, degrees 2 to ``degree``) and ``a = amplitude`` (the rms of the
+    radial displacement in units of R). Returns the positions ``(V, 3)`` of the vertices at
+    their material points (:func:`reference_directions`), the rest state of the stretching
+    energy, and the profile ``(V,)`` of the spontaneous curvature: the exact total curvature
+    of that surface at each material point (:func:`radial_graph_curvature`) divided by
+    ``2/R``, so that ``c0 = 2/R`` makes the bending energy vanish on the smooth surface, as it
+    does on the reference sphere, whatever the mesh."""
+    centre, R = reference_sphere(X_reference)
+    n = reference_directions(X_reference)
+    a, L = float(amplitude), _check_degree(degree)
+    coefficients = shape_coefficients(L, seed)
+    f = evaluate(coefficients, n)
+    if not (1.0 + a * f).min() > 0.5:
+        raise ValueError(f"a shape imperfection of rms {a:g} R pulls the surface to "
+                         f"{(1.0 + a * f).min():.3g} R of the centre: not an imperfection "
+                         "(keep it above 0.5 R)")
+    X = centre + (R * (1.0 + a * f))[:, None] * n
+    curvature = radial_graph_curvature(lambda d: np.log1p(a * evaluate(coefficients, d)), n, R,
+                                       _fd_step(L))
+    return X, 0.5 * R * curvature

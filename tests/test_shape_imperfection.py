@@ -1,0 +1,208 @@
+"""The shape imperfection: a shell whose stress-free shape is a seeded smooth surface near the
+sphere, the same surface on every mesh (protocol.imperfection, "shape imperfection")."""
+
+import json
+
+import numpy as np
+import pytest
+
+from shellbuckle.energies.bending import Bending
+from shellbuckle.energies.evolver_bending import StarPerpBending
+from shellbuckle.energies.total import with_c0
+from shellbuckle.mesh import icosphere
+from shellbuckle.mesh.random_sphere import random_sphere
+from shellbuckle.params import ShellParameters
+from shellbuckle.protocol.deflate import Protocol, init
+from shellbuckle.protocol.imperfection import (evaluate, harmonic_index, n_harmonics,
+                                               radial_graph_curvature, reference_directions,
+                                               shape_coefficients, stress_free_shape)
+
+from test_bending import _fd_errors, _perturbed_icosphere
+
+
+def _directions(n, seed=0):
+    d = np.random.default_rng(seed).standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def test_the_curvature_of_a_translated_sphere_is_two_over_its_radius_everywhere():
+    # oracle: a sphere of radius r whose centre is off the origin by t is the radial graph
+    # rho(n) = t.n + sqrt(r^2 - |t|^2 + (t.n)^2), far from a sphere about the origin (rho
+    # varies by 40 %), and its total curvature is exactly 2/r at every point
+    r, t = 1.3, np.array([0.15, -0.1, 0.2])
+    n = _directions(500)
+    c = radial_graph_curvature(lambda d: np.log((d @ t + np.sqrt(r * r - t @ t + (d @ t) ** 2))
+                                                / 0.7), n, 0.7, 1e-3)
+    np.testing.assert_allclose(c, 2.0 / r, rtol=1e-6)
+
+
+@pytest.mark.parametrize("l, m", [(2, 0), (5, -3), (12, 7)])
+def test_a_small_harmonic_bump_has_the_curvature_of_linear_theory(l, m):
+    # oracle: for r = R (1 + a Y_lm), c = (2 + a (l(l+1) - 2) Y_lm) / R + O(a^2) (the Laplacian
+    # of the unit sphere has eigenvalue -l(l+1)); the O(a^2) rest shrinks 10-fold with a
+    coefficients = np.zeros(n_harmonics(l))
+    coefficients[harmonic_index(l, m)] = 1.0
+    n = _directions(400, seed=l)
+    Y = evaluate(coefficients, n)
+    R = 2.0
+    rests = []
+    for a in (1e-3, 1e-4):
+        c = radial_graph_curvature(lambda d: np.log1p(a * evaluate(coefficients, d)), n, R,
+                                   0.02 / max(l, 10))
+        linear = (2.0 + a * (l * (l + 1) - 2.0) * Y) / R
+        rests.append(np.abs(c - linear).max() / (a * (l * (l + 1)) / R))
+    assert rests[0] < 0.05 and rests[1] < 0.2 * rests[0]
+
+
+def test_the_stress_free_shape_is_the_same_surface_on_two_meshes_and_reproducible():
+    # oracle: every vertex of either mesh lies on r(n) = R (1 + a f(n)) at its own material
+    # point, with the same f (the seed's field); the radial displacement has the requested
+    # rms over the sphere (a R, mean over a fine mesh's nearly uniform vertices); the same
+    # seed gives the same shape, another seed another
+    a, L = 0.004, 12
+    f = shape_coefficients(L, seed=3)
+    for mesh in (icosphere(20), random_sphere(3000, seed=3)):
+        X, profile = stress_free_shape(mesh.X, a, L, seed=3)
+        n = reference_directions(mesh.X)
+        R = np.linalg.norm(mesh.X, axis=1).mean()
+        np.testing.assert_allclose(np.linalg.norm(X, axis=1), R * (1 + a * evaluate(f, n)),
+                                   rtol=1e-13)
+        np.testing.assert_allclose(np.cross(X, n), 0.0, atol=1e-13)  # moved radially
+        rms = np.sqrt(np.mean((np.linalg.norm(X, axis=1) - R) ** 2))
+        assert rms == pytest.approx(a * R, rel=0.05)
+        again = stress_free_shape(mesh.X, a, L, seed=3)
+        np.testing.assert_array_equal(again[0], X)
+        np.testing.assert_array_equal(again[1], profile)
+        other = stress_free_shape(mesh.X, a, L, seed=4)[0]
+        assert np.abs(other - X).max() > 0.1 * a * R
+
+
+def test_the_discrete_curvature_of_the_stress_free_shape_converges_to_the_profile():
+    # oracle: Jülicher's discrete total curvature 2 H_i of the imperfect mesh tends to the
+    # exact curvature of the smooth surface, 2 p_i / R, under refinement (icospheres, whose
+    # curvature error falls with the edge)
+    a, L = 0.005, 8
+    errors = []
+    for level in (8, 16, 32):
+        mesh = icosphere(level)
+        X, profile = stress_free_shape(mesh.X, a, L, seed=1)
+        H = Bending.from_mesh(mesh).mean_curvature(X)
+        errors.append(np.sqrt(np.mean((2.0 * H - 2.0 * profile) ** 2)))
+    assert errors[1] < 0.5 * errors[0] and errors[2] < 0.5 * errors[1]
+    assert np.ptp(2.0 * profile) > 10 * errors[2]  # the profile is far from uniform
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_bending_with_a_profile_has_exact_derivatives(seed):
+    m, X = _perturbed_icosphere(2, seed)
+    profile = 1.0 + 0.3 * np.random.default_rng(seed).standard_normal(m.n_vertices)
+    b = Bending.from_mesh(m, kappa=1.3, c0=2.0, c0_profile=profile)
+    assert _fd_errors(b.value, lambda Y: b.gradient(Y).ravel(), X) < 1e-6
+    assert _fd_errors(lambda Y: b.gradient(Y).ravel(), lambda Y: b.hessian(Y).toarray(),
+                      X) < 1e-6
+
+
+def test_a_profile_is_a_per_vertex_c0_and_survives_the_c0_cycle():
+    # exact equivalences: Jülicher with profile p equals the formula with c0_i = c0 p_i;
+    # Evolver's star_perp with a profile equals star_perp with the per-vertex c0 array; a
+    # profile of ones is no profile, bit for bit; with_c0 keeps the profile (c0 = 0 clears it)
+    m, X = _perturbed_icosphere(3, seed=4)
+    p = 1.0 + 0.2 * np.random.default_rng(4).standard_normal(m.n_vertices)
+    b = Bending.from_mesh(m, kappa=0.8, c0=1.7, c0_profile=p)
+    M_over_A = b.mean_curvature(X)
+    A = b.vertex_areas(X)
+    assert b.value(X) == pytest.approx(0.4 * np.sum((2 * M_over_A - 1.7 * p) ** 2 * A),
+                                       rel=1e-12)
+    np.testing.assert_array_equal(b.c0_vertices, 1.7 * p)
+    ones = Bending.from_mesh(m, kappa=0.8, c0=1.7, c0_profile=np.ones(m.n_vertices))
+    plain = Bending.from_mesh(m, kappa=0.8, c0=1.7)
+    assert ones.value(X) == plain.value(X)
+    np.testing.assert_array_equal(ones.gradient(X), plain.gradient(X))
+    assert abs(ones.hessian(X) - plain.hessian(X)).max() == 0.0
+    flat = b.with_c0(0.0)
+    assert flat.value(X) == Bending.from_mesh(m, kappa=0.8, c0=0.0).value(X)
+    assert b.with_c0(0.0).with_c0(1.7).value(X) == b.value(X)
+    s = StarPerpBending(m.faces, m.n_vertices, kappa=0.8, c0=1.7, c0_profile=p)
+    s_array = StarPerpBending(m.faces, m.n_vertices, kappa=0.8, c0=1.7 * p)
+    assert s.value(X) == s_array.value(X)
+    np.testing.assert_array_equal(s.c0_vertices, 1.7 * p)
+    assert with_c0(s, 0.0).value(X) == StarPerpBending(m.faces, m.n_vertices, kappa=0.8,
+                                                       c0=0.0).value(X)
+    assert with_c0(with_c0(s, 0.0), 1.7).value(X) == s.value(X)
+
+
+PARAMS = ShellParameters.from_gamma(2333.0, nu=1 / 3)
+
+
+def test_a_shell_without_shape_imperfection_is_todays_shell_bit_for_bit():
+    mesh = random_sphere(800, seed=1)
+    base = init(mesh, PARAMS, Protocol.paper(until=0.1, smooth_jiggle=0.0))
+    zero = init(mesh, PARAMS, Protocol.paper(until=0.1, smooth_jiggle=0.0,
+                                             shape_imperfection=0.0))
+    assert zero[0].V0 == base[0].V0
+    np.testing.assert_array_equal(zero[1].X, base[1].X)
+    X = 0.97 * mesh.X
+    assert zero[0].energy.value(X) == base[0].energy.value(X)
+
+
+def test_the_run_starts_at_the_stress_free_shape_where_the_energy_vanishes_with_the_mesh():
+    # oracle: the stretching energy of the stress-free shape is zero (its own rest state), and
+    # its bending energy, the mismatch between the discrete curvature and the smooth
+    # surface's, falls under refinement towards zero, as the sphere's does with c0 = 2/R
+    a, L = 0.003, 8
+    bend = []
+    for level in (8, 16, 32):
+        mesh = icosphere(level)
+        protocol = Protocol.paper(until=0.1, smooth_jiggle=0.0, shape_imperfection=a,
+                                  shape_degree=L, seed=2)
+        ctx, state = init(mesh, PARAMS, protocol)
+        X, _ = stress_free_shape(mesh.X, a, L, seed=2)
+        np.testing.assert_array_equal(state.X, X)
+        assert ctx.V0 == ctx.volume.value(X)
+        parts = ctx.energy.parts(state.X)
+        assert abs(parts["E_stretch"]) < 1e-20
+        bend.append(parts["E_bend"])
+    assert bend[1] < 0.5 * bend[0] and bend[2] < 0.5 * bend[1]
+    # the imperfect shape costs energy when made from a perfect shell: it is not a shape
+    # the plain sphere would keep
+    plain = init(icosphere(32), PARAMS, Protocol.paper(until=0.1, smooth_jiggle=0.0))[0]
+    assert plain.energy.value(state.X) > 100 * bend[2]
+
+
+def test_the_protocol_stores_the_shape_imperfection_and_old_runs_have_none():
+    p = Protocol.paper(until=0.1, shape_imperfection=0.002, seed=4)
+    d = p.to_dict()
+    assert d["shape_imperfection"] == 0.002 and d["shape_degree"] == 20
+    assert Protocol.from_dict(json.loads(json.dumps(d))) == p
+    old = Protocol.paper(until=0.1).to_dict()
+    assert "shape_imperfection" not in old and Protocol.from_dict(old).shape_imperfection is None
+    for bad, match in (({"shape_imperfection": 0.2}, "shape_imperfection"),
+                       ({"shape_imperfection": -1e-3}, "shape_imperfection"),
+                       ({"shape_degree": 8}, "give it with shape_imperfection"),
+                       ({"shape_imperfection": 1e-3, "shape_degree": 1}, "shape_degree")):
+        with pytest.raises(ValueError, match=match):
+            Protocol.paper(until=0.1, **bad)
+
+
+def test_an_imperfect_run_resumes_bit_for_bit_and_exports_its_own_rest_state(tmp_path):
+    from shellbuckle.export import RunFields
+    from shellbuckle.run import deflate, resume
+
+    mesh = random_sphere(600, seed=2)
+    params = ShellParameters.from_gamma(271.0, nu=1 / 3)
+    options = dict(schedule=[0.03, 0.06, 0.09], smooth_jiggle=0.0, shape_imperfection=0.004,
+                   shape_degree=6, seed=2, threads=1, locate=False)
+    full = deflate(mesh, params, out=tmp_path / "full", **options)
+    part = deflate(mesh, params, out=tmp_path / "part", max_steps=1, **options)
+    assert full.status == "finished" and part.status == "paused"
+    done = resume(tmp_path / "part", threads=1, locate=False)
+    for k in full.steps:
+        np.testing.assert_array_equal(done.positions(k), full.positions(k))
+    # the export measures from the stress-free shape: no displacement and the table's energy
+    # at step 0, with the per-vertex c0 of the profile
+    fields = RunFields.of(full)
+    X0 = full.positions(0)
+    np.testing.assert_array_equal(fields.displacement(X0), 0.0)
+    bend = fields.bending.value(X0)
+    assert bend == pytest.approx(full.table["E_bend"].iloc[0], rel=1e-12)
+    assert fields.c0_vertices is not None and np.ptp(fields.c0_vertices) > 0.01
