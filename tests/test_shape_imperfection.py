@@ -206,3 +206,24 @@ def test_an_imperfect_run_resumes_bit_for_bit_and_exports_its_own_rest_state(tmp
     bend = fields.bending.value(X0)
     assert bend == pytest.approx(full.table["E_bend"].iloc[0], rel=1e-12)
     assert fields.c0_vertices is not None and np.ptp(fields.c0_vertices) > 0.01
+
+
+def test_a_sweep_names_its_imperfect_shells_and_old_sweeps_keep_their_description():
+    from shellbuckle.studies.refinement import study_spec
+    from shellbuckle.sweep import SweepSpec
+
+    spec = SweepSpec(vertices=[600], shape_imperfection=[None, 0.003], shape_degree=[8],
+                     smooth_jiggle=[0.0])
+    names = [p["name"] for p in spec.points()]
+    assert names == ["g2333_nu0.333_v600_s0_sj0", "g2333_nu0.333_v600_s0_sj0_si0.003_Ls8"]
+    imperfect = spec.points()[1]
+    assert (imperfect["shape_imperfection"], imperfect["shape_degree"]) == (0.003, 8)
+    assert "shape_imperfection" not in spec.points()[0]
+    stored = spec.to_dict()
+    assert stored["shape_imperfection"] == [None, 0.003] and stored["shape_degree"] == [8]
+    assert "shape_imperfection" not in SweepSpec(vertices=[600]).to_dict()
+    study = study_spec([2333], ["helfrich"], [600, 1000], shape_imperfection=0.002)
+    assert {p["shape_imperfection"] for p in study.points()} == {0.002}
+    assert {p["shape_degree"] for p in study.points()} == {20}
+    with pytest.raises(ValueError, match="shape_degree"):
+        SweepSpec(shape_degree=[8])

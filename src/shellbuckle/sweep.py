@@ -66,10 +66,13 @@ PAPER_VERTICES = 3594
 LOCK_POLL_S = 2.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
-         "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree")
+         "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree",
+         "shape_imperfection", "shape_degree")
 #: Axes of the smooth imperfection: left out of ``sweep.json`` and of the run points while
 #: unset, so that a sweep stored before them resumes with the same description.
 SMOOTH_AXES = ("smooth_jiggle", "smooth_degree")
+#: Axes of the shape imperfection, likewise.
+SHAPE_AXES = ("shape_imperfection", "shape_degree")
 
 
 def _bending_kinds() -> tuple:
@@ -149,7 +152,12 @@ class SweepSpec:
       (for mesh refinement). It replaces Surface Evolver's jiggle in those runs: a sweep with
       smooth amplitudes only refuses ``jiggle`` and a ``temperature`` other than the default;
       ``None`` among the amplitudes adds the per-vertex runs too. ``smooth_degree`` needs an
-      amplitude.
+      amplitude;
+    - ``shape_imperfection`` (rms radial displacement of the stress-free shape in units of R,
+      in [0, 0.1]; default None: a spherical shell) and ``shape_degree`` (integers in [2, 400];
+      None: the default degree): the shell's own imperfection
+      (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`), drawn with each run's
+      seed, whatever the jiggle; ``None`` among the amplitudes adds spherical shells too.
 
     ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
     with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
@@ -173,6 +181,8 @@ class SweepSpec:
     energy_convention: tuple = ("helfrich",)
     smooth_jiggle: tuple = (None,)
     smooth_degree: tuple = (None,)
+    shape_imperfection: tuple = (None,)
+    shape_degree: tuple = (None,)
     tol: float = 1e-9
     max_iter: int = DEFAULT_MAX_ITER
     stop_at_contact: bool = True
@@ -217,6 +227,7 @@ class SweepSpec:
         put("energy_convention", tuple(_convention(c) for c in
                                        _values("energy_convention", self.energy_convention)))
         self._check_smooth(put)
+        self._check_shape(put)
         put("tol", _real("tol", self.tol, 0.0, 1e-2, allowed="0 < tol < 1e-2"))
         put("max_iter", _integer("max_iter", self.max_iter, 1, "integers >= 1"))
         if not isinstance(self.stop_at_contact, bool):
@@ -256,6 +267,29 @@ class SweepSpec:
                              f"per-vertex jiggle (jiggle {list(self.jiggle)}, temperature "
                              f"{list(self.temperature)}), not both; allowed: none among "
                              "smooth_jiggle to add per-vertex runs")
+
+    def _check_shape(self, put) -> None:
+        """The shape imperfection's axes: in range; a degree only with an amplitude."""
+        from .protocol.deflate import MAX_SMOOTH_DEGREE, MAX_SMOOTH_JIGGLE
+
+        put("shape_imperfection", tuple(
+            None if a is None else
+            _real("shape_imperfection", a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False,
+                  high_open=False,
+                  allowed=f"0 <= shape_imperfection <= {MAX_SMOOTH_JIGGLE:g} (units of R), "
+                          "or none")
+            for a in _values("shape_imperfection", self.shape_imperfection)))
+        put("shape_degree", tuple(
+            None if L is None else
+            _integer("shape_degree", L, 2, f"integers in [2, {MAX_SMOOTH_DEGREE}], or none")
+            for L in _values("shape_degree", self.shape_degree)))
+        for L in self.shape_degree:
+            if L is not None and L > MAX_SMOOTH_DEGREE:
+                raise ValueError(f"shape_degree = {L!r} is out of range; allowed: integers in "
+                                 f"[2, {MAX_SMOOTH_DEGREE}], or none")
+        if self.shape_imperfection == (None,) and self.shape_degree != (None,):
+            raise ValueError(f"shape_degree {list(self.shape_degree)} is the degree of the "
+                             "shape imperfection: give it with shape_imperfection")
 
     # ------------------------------------------------------------------ input
 
@@ -308,6 +342,9 @@ class SweepSpec:
         if self.smooth_jiggle == (None,):
             for name in SMOOTH_AXES:
                 del out[name]
+        if self.shape_imperfection == (None,):
+            for name in SHAPE_AXES:
+                del out[name]
         return out
 
     # ------------------------------------------------------------------ the grid
@@ -328,10 +365,14 @@ class SweepSpec:
             jiggles = []
         jiggles += [(None, None, a, L) for a in self.smooth_jiggle if a is not None
                     for L in self.smooth_degree]
-        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp, a, L), bend, \
-                method in itertools.product(self.energy_convention, self.gamma, self.nu, self.meshes(),
-                                     self.seeds, self.dv, self.until, self.c0_cycle, jiggles,
-                                     self.bending, self.method):
+        shapes = [(None, None)] if None in self.shape_imperfection else []
+        shapes += [(a, L) for a in self.shape_imperfection if a is not None
+                   for L in self.shape_degree]
+        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp, a, L), \
+                (shape, shape_L), bend, method in itertools.product(
+                    self.energy_convention, self.gamma, self.nu, self.meshes(), self.seeds,
+                    self.dv, self.until, self.c0_cycle, jiggles, shapes, self.bending,
+                    self.method):
             point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
                      "n_vertices": n if mesh == "random" else 10 * n * n + 2,
                      "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
@@ -341,6 +382,8 @@ class SweepSpec:
                      "stop_at_contact": self.stop_at_contact}
             if a is not None:  # only then: the points of earlier sweeps keep their keys
                 point.update(smooth_jiggle=a, smooth_degree=L)
+            if shape is not None:
+                point.update(shape_imperfection=shape, shape_degree=shape_L)
             name = run_name(point)
             if name in names:
                 raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
@@ -358,7 +401,7 @@ def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
     ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>`` or ``_sj<smooth_jiggle>[_L<degree>]``,
-    ``_<bending>``, ``_<method>``,
+    ``_si<shape_imperfection>[_Ls<degree>]``, ``_<bending>``, ``_<method>``,
     ``_it<max_iter>``, ``_<energy convention>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
@@ -378,6 +421,10 @@ def run_name(point: dict) -> str:
         name += f"_j{_fmt(point['jiggle'])}"
     elif point.get("temperature", DEFAULT_TEMPERATURE) != DEFAULT_TEMPERATURE:
         name += f"_T{_fmt(point['temperature'])}"
+    if point.get("shape_imperfection") is not None:
+        name += f"_si{_fmt(point['shape_imperfection'])}"
+        if point.get("shape_degree") is not None:
+            name += f"_Ls{point['shape_degree']}"
     if point["bending"] != "juelicher":
         name += f"_{point['bending']}"
     if point["method"] != "newton":
@@ -444,6 +491,8 @@ def _deflate(point: dict, folder: Path):
                            temperature=point.get("temperature"),
                            smooth_jiggle=point.get("smooth_jiggle"),
                            smooth_degree=point.get("smooth_degree"),
+                           shape_imperfection=point.get("shape_imperfection"),
+                           shape_degree=point.get("shape_degree"),
                            seed=point["seed"], bending=point["bending"], method=point["method"],
                            tol=point["tol"], max_iter=point.get("max_iter", DEFAULT_MAX_ITER),
                            stop_at_contact=point["stop_at_contact"],

@@ -32,7 +32,8 @@ log = logging.getLogger(__name__)
 #: Columns of :func:`collect_runs`, in order.
 COLUMNS = ("path", "name", "parent", "gamma", "nu", "energy_convention", "seed", "n_vertices",
            "mesh", "jiggle",
-           "temperature", "smooth_jiggle", "smooth_degree", "c0_cycle", "method", "bending", "control", "dv", "until", "status",
+           "temperature", "smooth_jiggle", "smooth_degree", "shape_imperfection", "shape_degree",
+           "c0_cycle", "method", "bending", "control", "dv", "until", "status",
            "message", "n_steps", "stop_dV_over_V", "stop_reason", "primary_dV_over_V",
            "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
            "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
@@ -176,6 +177,8 @@ def collect_run(folder, *, store_analysis: bool = False,
                jiggle=protocol.get("jiggle"), temperature=protocol.get("temperature"),
                smooth_jiggle=protocol.get("smooth_jiggle"),
                smooth_degree=protocol.get("smooth_degree"),
+               shape_imperfection=protocol.get("shape_imperfection"),
+               shape_degree=protocol.get("shape_degree"),
                c0_cycle=protocol.get("c0_cycle"), method=protocol.get("method"),
                bending=protocol.get("bending"), control=protocol.get("control", "volume"),
                dv=dv, until=until, status=meta.get("status"), message=meta.get("message"),
@@ -209,11 +212,12 @@ def collect_run(folder, *, store_analysis: bool = False,
     return row, table
 
 
-_FLOATS = ("gamma", "nu", "jiggle", "temperature", "smooth_jiggle", "dv", "until", "stop_dV_over_V",
+_FLOATS = ("gamma", "nu", "jiggle", "temperature", "smooth_jiggle", "shape_imperfection", "dv",
+           "until", "stop_dV_over_V",
            "primary_dV_over_V", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
            "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
            "W_mean", "W_std", "converged_fraction", "wall_s")
-_INTS = ("seed", "n_vertices", "n_steps", "W_steps", "smooth_degree")
+_INTS = ("seed", "n_vertices", "n_steps", "W_steps", "smooth_degree", "shape_degree")
 _BOOLS = ("c0_cycle", "primary_confirmed", "located")
 
 
@@ -230,6 +234,8 @@ def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = N
     (absolute), ``name``, ``parent`` (the run it branches from), the parameters ``gamma``,
     ``nu`` and protocol fields ``seed``, ``jiggle``, ``temperature``, ``smooth_jiggle`` and
     ``smooth_degree`` (the smooth imperfection; missing for Surface Evolver's jiggle),
+    ``shape_imperfection`` and ``shape_degree`` (the shell's own imperfection; missing for a
+    spherical shell),
     ``c0_cycle``,
     ``method``, ``bending``, ``control``, ``dv`` (volume step, the median of the schedule's
     increments), ``until`` (last target); ``n_vertices``, ``mesh`` (:func:`mesh_kind`);

@@ -39,6 +39,13 @@ def register(sub) -> None:
     add_number(parser, "--smooth-degree", "smooth_degree",
                "highest degree L of the smooth imperfection (default 20); every mesh must "
                "resolve it with 4 mean edges per wavelength 2 pi R/L")
+    add_number(parser, "--shape-imperfection", "shape_imperfection",
+               "shells with a shape imperfection of this rms (units of R; default none: "
+               "spherical shells): the stress-free shape moved radially by a seeded field, the "
+               "same shell on every mesh of a seed (give --smooth-jiggle 0 for no jiggle)")
+    add_number(parser, "--shape-degree", "shape_degree",
+               "highest degree L of the shape imperfection (default 20); every mesh must "
+               "resolve it")
     add_number(parser, "--until", "until_deflated", "last target dV/V (default 0.95, the "
                "paper's protocol to self-contact; W is read near dV/V = 0.645)")
     add_number(parser, "--workers", "workers", "local worker processes (default: cores)")
@@ -100,6 +107,14 @@ def _options(args) -> dict:
     option = "--smooth-degree" if args.smooth_degree is not None else "--vertices"
     check_smooth_degree(option, typed(args, option, degree if option != "--vertices" else n),
                         degree, n, mesh=f"--vertices {n}")
+    if args.shape_degree is not None and args.shape_imperfection is None:
+        raise ValueError(f"--shape-degree {typed(args, '--shape-degree')}: allowed: only with "
+                         "--shape-imperfection (the highest degree of the shape imperfection)")
+    if args.shape_imperfection is not None:
+        degree = DEFAULT_DEGREE if args.shape_degree is None else args.shape_degree
+        option = "--shape-degree" if args.shape_degree is not None else "--shape-imperfection"
+        check_smooth_degree(option, typed(args, option), degree, n, mesh=f"--vertices {n}",
+                            kind="shape")
     until = 0.95 if args.until is None else args.until
     if until < 0.019:
         raise ValueError(f"--until {typed(args, '--until', until)}: allowed: at least the volume "
@@ -107,6 +122,7 @@ def _options(args) -> dict:
     return {"gammas": gammas, "conventions": conventions, "vertices": vertices,
             "seeds": seeds, "smooth_jiggle": args.smooth_jiggle,
             "smooth_degree": args.smooth_degree,
+            "shape_imperfection": args.shape_imperfection, "shape_degree": args.shape_degree,
             "until": until}
 
 

@@ -13,12 +13,14 @@ PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
 #: Each list option's kind; the names are SweepSpec's fields.
 KINDS = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
          "dv": float, "until": float, "jiggle": float, "temperature": float, "bending": str,
-         "method": str, "energy_convention": str, "smooth_jiggle": float, "smooth_degree": int}
+         "method": str, "energy_convention": str, "smooth_jiggle": float, "smooth_degree": int,
+         "shape_imperfection": float, "shape_degree": int}
 #: The range (a name of ``_checks.RANGES``) of each numeric axis.
 SPANS = {"gamma": "gamma", "nu": "nu", "seeds": "seed", "vertices": "vertices",
          "icosphere": "icosphere", "dv": "dv", "until": "until_deflated", "jiggle": "jiggle",
          "temperature": "temperature", "smooth_jiggle": "smooth_jiggle",
-         "smooth_degree": "smooth_degree"}
+         "smooth_degree": "smooth_degree", "shape_imperfection": "shape_imperfection",
+         "shape_degree": "shape_degree"}
 #: Runs of one sweep at most.
 MAX_RUNS = 10_000
 
@@ -56,6 +58,15 @@ def register(sub) -> None:
                         help="comma-separated list of: highest degrees L of the smooth "
                              "imperfection (default 20); every mesh must resolve it with 4 "
                              "mean edges per wavelength 2 pi R/L; " + allowed("smooth_degree"))
+    parser.add_argument("--shape-imperfection", metavar="A,..",
+                        help="comma-separated list of: rms amplitudes (units of R) of the "
+                             "shells' shape imperfection, their stress-free shape moved "
+                             "radially by a seeded field, the same shell on every mesh of a "
+                             "seed; " + allowed("shape_imperfection"))
+    parser.add_argument("--shape-degree", metavar="L,..",
+                        help="comma-separated list of: highest degrees L of the shape "
+                             "imperfection (default 20); every mesh must resolve it; "
+                             + allowed("shape_degree"))
     parser.add_argument("--workers", metavar="N", help="local worker processes (default: "
                         "cores); " + allowed("workers"))
     parser.add_argument("--scheduler", metavar="ADDR",
@@ -160,3 +171,13 @@ def _check(spec, given: dict, config, gamma_text=None) -> None:
             option = "--smooth-jiggle"
             text = ",".join(f"{a:g}" for a in spec.smooth_jiggle if a is not None)
         check_smooth_degree(option, text, degree, n, mesh=mesh)
+    if any(a is not None for a in spec.shape_imperfection):
+        from ..protocol.imperfection import DEFAULT_DEGREE
+
+        degree = max(DEFAULT_DEGREE if L is None else L for L in spec.shape_degree)
+        if None not in spec.shape_degree:
+            option, text = "--shape-degree", degree
+        else:
+            option = "--shape-imperfection"
+            text = ",".join(f"{a:g}" for a in spec.shape_imperfection if a is not None)
+        check_smooth_degree(option, text, degree, n, mesh=mesh, kind="shape")

@@ -137,10 +137,15 @@ def branch_end(point: dict | None) -> float:
 
 def _imperfection(protocol: dict) -> str:
     if protocol.get("smooth_jiggle") is not None:
-        return f"smooth {protocol['smooth_jiggle']:.3g} R, L <= {protocol.get('smooth_degree')}"
-    if protocol.get("jiggle") is not None:
-        return f"jiggle {protocol['jiggle']:g} edge"
-    return f"jiggle T = {protocol.get('temperature'):g}"
+        kick = f"smooth {protocol['smooth_jiggle']:.3g} R, L <= {protocol.get('smooth_degree')}"
+    elif protocol.get("jiggle") is not None:
+        kick = f"jiggle {protocol['jiggle']:g} edge"
+    else:
+        kick = f"jiggle T = {protocol.get('temperature'):g}"
+    if protocol.get("shape_imperfection"):
+        kick = (f"shape {protocol['shape_imperfection']:.3g} R, L <= "
+                f"{protocol.get('shape_degree')}; {kick}")
+    return kick
 
 
 def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
@@ -320,24 +325,31 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
 
 def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
                smooth_jiggle: float | None = None, smooth_degree: int | None = None,
+               shape_imperfection: float | None = None, shape_degree: int | None = None,
                until: float = 0.95):
     """The study's :class:`~shellbuckle.sweep.SweepSpec`: the paper's protocol (dv = 0.019,
     the c0 cycle, Newton) with the smooth imperfection of rms ``smooth_jiggle`` R (default
     :func:`paper_equivalent_amplitude`) up to degree ``smooth_degree`` (default
-    :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`)."""
+    :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`), on shells with the shape
+    imperfection ``shape_imperfection`` R up to ``shape_degree`` if given (spherical
+    otherwise)."""
     from ..protocol.imperfection import DEFAULT_DEGREE
     from ..sweep import SweepSpec
 
     degree = DEFAULT_DEGREE if smooth_degree is None else smooth_degree
     if smooth_jiggle is None:
         smooth_jiggle = round(paper_equivalent_amplitude(degree), 5)
+    shape = {} if shape_imperfection is None else {
+        "shape_imperfection": shape_imperfection,
+        "shape_degree": DEFAULT_DEGREE if shape_degree is None else shape_degree}
     return SweepSpec(gamma=list(gammas), energy_convention=list(conventions),
                      vertices=list(vertices), seeds=list(seeds), until=until,
-                     smooth_jiggle=smooth_jiggle, smooth_degree=degree)
+                     smooth_jiggle=smooth_jiggle, smooth_degree=degree, **shape)
 
 
 def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
               smooth_jiggle: float | None = None, smooth_degree: int | None = None,
+              shape_imperfection: float | None = None, shape_degree: int | None = None,
               until: float = 0.95, workers: int | None = None, scheduler=None,
               progress: bool = True, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
@@ -346,7 +358,8 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     from ..sweep import run_sweep
 
     spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
-                      smooth_degree=smooth_degree, until=until)
+                      smooth_degree=smooth_degree, shape_imperfection=shape_imperfection,
+                      shape_degree=shape_degree, until=until)
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
     folders = [Path(out) / p["name"] for p in spec.points()]
     return report(out, [f for f in folders if f.exists()], energy_at_values=energy_at_values)
