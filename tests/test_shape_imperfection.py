@@ -208,6 +208,24 @@ def test_an_imperfect_run_resumes_bit_for_bit_and_exports_its_own_rest_state(tmp
     assert fields.c0_vertices is not None and np.ptp(fields.c0_vertices) > 0.01
 
 
+def test_a_shape_that_inverts_the_curvature_somewhere_is_refused_whatever_the_mesh():
+    # oracle: the lowest curvature over the fixed grid is the lowest over a fine mesh's
+    # vertices to the grid's resolution, and it falls linearly with the amplitude (linear
+    # theory: 1 + a (l(l+1) - 2) f / 2); at or below zero the protocol refuses the shell
+    from shellbuckle.protocol.imperfection import lowest_curvature
+
+    a, L = 0.01, 12
+    low = lowest_curvature(a, L, 0)
+    _, profile = stress_free_shape(icosphere(60).X, a, L, seed=0)
+    assert low == pytest.approx(profile.min(), abs=0.02)
+    half = lowest_curvature(a / 2, L, 0)
+    assert 1.0 - half == pytest.approx((1.0 - low) / 2, rel=0.1)
+    assert low < 0.5 and half > 0
+    Protocol.paper(until=0.1, shape_imperfection=a / 2, shape_degree=L)
+    with pytest.raises(ValueError, match="inverts the curvature"):
+        Protocol.paper(until=0.1, shape_imperfection=3 * a, shape_degree=L)
+
+
 def test_a_sweep_names_its_imperfect_shells_and_old_sweeps_keep_their_description():
     from shellbuckle.studies.refinement import study_spec
     from shellbuckle.sweep import SweepSpec

@@ -290,6 +290,15 @@ class SweepSpec:
         if self.shape_imperfection == (None,) and self.shape_degree != (None,):
             raise ValueError(f"shape_degree {list(self.shape_degree)} is the degree of the "
                              "shape imperfection: give it with shape_imperfection")
+        from .protocol.imperfection import DEFAULT_DEGREE, check_shape
+
+        for a in self.shape_imperfection:
+            for L in self.shape_degree if a else ():
+                for seed in _values("seeds", self.seeds):
+                    try:
+                        check_shape(a, DEFAULT_DEGREE if L is None else L, seed)
+                    except ValueError as exc:
+                        raise ValueError(f"shape_imperfection = {a!r}: {exc}") from None
 
     # ------------------------------------------------------------------ input
 

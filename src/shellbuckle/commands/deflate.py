@@ -136,6 +136,8 @@ def _protocol(args) -> dict:
     for name, field in IN_D.items():
         if name in options:  # its value in units of R needs the shell: _check_smooth
             fields[field] = 0.0
+    if fields.get("shape_imperfection"):  # its curvature is checked with the option's name
+        fields["shape_imperfection"] = 0.0
     if options.get("pressures") is not None:
         Protocol(schedule=tuple(options["pressures"]), control="pressure", **fields)
     elif options.get("schedule") is not None:
@@ -233,7 +235,7 @@ def _check_shell(args, params, n: int, mesh: str, options: dict) -> None:
 def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
     """The smooth and shape imperfections: amplitudes in units of the thickness converted to
     units of R and checked, and the mesh resolving their degree."""
-    from ..protocol.imperfection import DEFAULT_DEGREE
+    from ..protocol.imperfection import DEFAULT_DEGREE, check_shape
 
     for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
         in_d = amplitude + "_d"
@@ -255,6 +257,13 @@ def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
                 else "--" + amplitude.replace("_", "-")
         check_smooth_degree(option, typed(args, option), options.get(degree) or DEFAULT_DEGREE,
                             n, mesh=mesh, kind=kind)
+        if kind == "shape" and options[amplitude]:
+            flag = flag_d if options.get(in_d) is not None else "--shape-imperfection"
+            try:
+                check_shape(options[amplitude], options.get(degree) or DEFAULT_DEGREE,
+                            options.get("seed", protocol_defaults()["seed"]))
+            except ValueError as exc:
+                raise ValueError(f"{flag} {typed(args, flag)}: {exc}") from None
 
 
 def _as_continue(args):

@@ -82,7 +82,7 @@ def _cmd(args) -> int:
 def _options(args) -> dict:
     """The study's options, every one checked (ValueError naming it) before any work."""
     from ..params import ENERGY_CONVENTIONS, bending_factor
-    from ..protocol.imperfection import DEFAULT_DEGREE
+    from ..protocol.imperfection import DEFAULT_DEGREE, check_shape
 
     gammas = values("--gamma", args.gamma, float, "gamma")
     conventions = values("--energy-convention", args.energy_convention, str)
@@ -115,6 +115,12 @@ def _options(args) -> dict:
         option = "--shape-degree" if args.shape_degree is not None else "--shape-imperfection"
         check_smooth_degree(option, typed(args, option), degree, n, mesh=f"--vertices {n}",
                             kind="shape")
+        for seed in seeds:
+            try:
+                check_shape(args.shape_imperfection, degree, seed)
+            except ValueError as exc:
+                raise ValueError(f"--shape-imperfection {typed(args, '--shape-imperfection')}: "
+                                 f"{exc}") from None
     until = 0.95 if args.until is None else args.until
     if until < 0.019:
         raise ValueError(f"--until {typed(args, '--until', until)}: allowed: at least the volume "

@@ -67,8 +67,8 @@ from ..solve.linesearch import RestoredPath
 from ..solve.newton import ABANDONED
 from ..solve.pressure import minimize_at_pressure
 from ..solve.workspace import Workspace
-from .imperfection import (DEFAULT_DEGREE, reference_directions, reference_sphere,
-                           smooth_jiggle, stress_free_shape)
+from .imperfection import (DEFAULT_DEGREE, check_shape, reference_directions,
+                           reference_sphere, smooth_jiggle, stress_free_shape)
 from .jiggle import (EVOLVER_DEFAULT_TEMPERATURE, evolver_sigma, jiggle, mean_edge_length,
                      step_rng)
 from .schedule import PAPER_DV, check_schedule, linear_schedule
@@ -236,6 +236,8 @@ class Protocol:
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
         if not (0 < self.tol < 1e-2):
             raise ValueError(f"tol must be in (0, 1e-2), got {self.tol!r}")
+        if self.shape_imperfection:
+            check_shape(self.shape_imperfection, self.shape_degree, self.seed)
 
     def _check_smooth(self) -> None:
         """The smooth imperfection's options: exclusive with the per-vertex jiggles, an
@@ -265,7 +267,9 @@ class Protocol:
 
     def _check_shape(self) -> None:
         """The shape imperfection's options: an amplitude in [0, MAX_SMOOTH_JIGGLE], a degree
-        in [2, MAX_SMOOTH_DEGREE] (default DEFAULT_DEGREE) only with an amplitude."""
+        in [2, MAX_SMOOTH_DEGREE] (default DEFAULT_DEGREE) only with an amplitude; the
+        stress-free shape's curvature positive everywhere is checked last
+        (:func:`~.imperfection.check_shape`, which needs the seed)."""
         a, L = self.shape_imperfection, self.shape_degree
         if a is None:
             if L is not None:

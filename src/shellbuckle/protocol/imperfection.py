@@ -40,6 +40,7 @@ vertices (0.25 s for 160k vertices at L = 30 on one core).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -270,6 +271,51 @@ def radial_graph_curvature(w, directions, radius: float, delta: float) -> np.nda
     laplacian = np.trace(hess, axis1=1, axis2=2)
     along = np.einsum("ni,nij,nj->n", grad, hess, grad)
     return np.exp(-w0) / float(radius) * (2.0 / q - laplacian / q + along / q ** 3)
+
+
+CHECK_POINTS = 20000
+"""Directions of the fixed grid on which :func:`lowest_curvature` looks for the stress-free
+shape's lowest curvature (a Fibonacci lattice, mean spacing 0.025 R: eight points per
+wavelength at L = 30), so that whether a shape imperfection is allowed does not depend on the
+mesh."""
+
+
+def fibonacci_directions(n: int) -> np.ndarray:
+    """``n`` nearly uniform unit vectors ``(n, 3)`` (the Fibonacci lattice of the sphere)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+@functools.lru_cache(maxsize=64)
+def lowest_curvature(amplitude: float, degree: int, seed: int) -> float:
+    """The lowest total curvature of the stress-free shape of a shape imperfection, in units
+    of the sphere's ``2/R``, over :data:`CHECK_POINTS` fixed directions. At or below zero the
+    shape has regions of inverted curvature: dimples of its own, not an imperfect sphere
+    (:func:`check_shape`)."""
+    a, L = float(amplitude), _check_degree(degree)
+    coefficients = shape_coefficients(L, seed)
+    n = fibonacci_directions(CHECK_POINTS)
+    if not (1.0 + a * evaluate(coefficients, n)).min() > 0.5:
+        return -math.inf
+    c = radial_graph_curvature(lambda d: np.log1p(a * evaluate(coefficients, d)), n, 1.0,
+                               _fd_step(L))
+    return float(0.5 * c.min())
+
+
+def check_shape(amplitude: float, degree: int, seed: int) -> None:
+    """``ValueError`` unless the stress-free shape of this shape imperfection has a positive
+    curvature everywhere (:func:`lowest_curvature`)."""
+    low = lowest_curvature(float(amplitude), int(degree), int(seed))
+    if not low > 0:
+        raise ValueError(
+            f"a shape imperfection of rms {float(amplitude):.4g} R up to degree {int(degree)} "
+            f"(seed {int(seed)}) inverts the curvature of the shell somewhere (lowest curvature "
+            f"{low:.3g} times the sphere's): a dimpled shell, not an imperfect sphere; give a "
+            "smaller amplitude or a lower degree (the curvature varies as the amplitude times "
+            "about L^2/2)")
 
 
 def stress_free_shape(X_reference, amplitude: float, degree: int, seed: int):
