@@ -245,3 +245,34 @@ def test_a_sweep_names_its_imperfect_shells_and_old_sweeps_keep_their_descriptio
     assert {p["shape_degree"] for p in study.points()} == {20}
     with pytest.raises(ValueError, match="shape_degree"):
         SweepSpec(shape_degree=[8])
+
+
+def _dent_axis(directions, X):
+    """The unit vector to the dent in the material: the material directions weighted by the
+    squared depth of each vertex below the median distance from the origin."""
+    radius = np.linalg.norm(X, axis=1)
+    w = np.maximum(np.median(radius) - radius, 0.0) ** 2
+    c = (w[:, None] * directions).sum(axis=0)
+    return c / np.linalg.norm(c)
+
+
+def test_an_imperfect_shell_dents_at_the_same_place_on_two_meshes(tmp_path):
+    # invariance: the same shape imperfection (seed, amplitude, degree) on two randomized
+    # meshes of different sizes is the same shell, so it follows the same pressure path and
+    # its dent lies at the same material point; a kicked perfect sphere dents where the mesh
+    # decides (tens of degrees apart, docs/protocol.md). At a tenth of this amplitude the
+    # imperfection no longer dominates the meshes' own (the two runs of this test then end
+    # with dents 88 degrees apart)
+    from shellbuckle.run import deflate
+
+    params = ShellParameters.from_gamma(271.0, nu=1 / 3)
+    runs = [deflate(random_sphere(n, seed=n), params, out=tmp_path / f"v{n}",
+                    schedule=[0.05, 0.1, 0.15, 0.2, 0.25, 0.3], smooth_jiggle=0.0,
+                    shape_imperfection=0.03, shape_degree=4, seed=3, threads=1, locate=False)
+            for n in (1500, 4000)]
+    assert all(run.status == "finished" for run in runs)
+    p = [run.table["pressure"].to_numpy()[1:] for run in runs]
+    assert p[0][3] < 0.95 * p[0][2]  # it buckled
+    np.testing.assert_allclose(p[0], p[1], rtol=0.03)
+    axes = [_dent_axis(reference_directions(run.store.X0), run.positions(-1)) for run in runs]
+    assert np.degrees(np.arccos(np.clip(axes[0] @ axes[1], -1.0, 1.0))) < 3.0
