@@ -237,6 +237,11 @@ def test_a_sweep_names_its_imperfect_shells_and_old_sweeps_keep_their_descriptio
     imperfect = spec.points()[1]
     assert (imperfect["shape_imperfection"], imperfect["shape_degree"]) == (0.003, 8)
     assert "shape_imperfection" not in spec.points()[0]
+    from shellbuckle.store.catalogue import _parameters  # the sweep's catalogue row says it
+
+    row = _parameters(imperfect, {"params": {}, "protocol": {"shape_imperfection": 0.003,
+                                                             "shape_degree": 8}})
+    assert (row["shape_imperfection"], row["shape_degree"]) == (0.003, 8)
     stored = spec.to_dict()
     assert stored["shape_imperfection"] == [None, 0.003] and stored["shape_degree"] == [8]
     assert "shape_imperfection" not in SweepSpec(vertices=[600]).to_dict()

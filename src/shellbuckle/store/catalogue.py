@@ -25,7 +25,9 @@ Columns (:data:`COLUMNS`):
 - ``name``, ``path`` (relative to ``OUT``), the parameters (from ``run.json`` where the run
   exists, else from ``sweep.json``): ``gamma``, ``nu``, ``seed``, ``mesh`` (``random`` or
   ``icosphere``), ``n_vertices``, ``icosphere`` (level), ``dv``, ``until``, ``c0_cycle``,
-  ``jiggle``, ``temperature``, ``bending``, ``method``, ``energy_convention``;
+  ``jiggle``, ``temperature``, ``smooth_jiggle``, ``smooth_degree`` (the smooth imperfection),
+  ``shape_imperfection``, ``shape_degree`` (the shell's own; empty where unset),
+  ``bending``, ``method``, ``energy_convention``;
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
   written or whose worker died; ``message``; ``stop_reason`` (``self-intersection`` or
@@ -79,7 +81,8 @@ PRESSURE_DROP = 0.2
 W_RANGE = (0.53, 0.76)
 
 PARAMETER_COLUMNS = ("gamma", "nu", "seed", "mesh", "n_vertices", "icosphere", "dv", "until",
-                     "c0_cycle", "jiggle", "temperature", "bending", "method",
+                     "c0_cycle", "jiggle", "temperature", "smooth_jiggle", "smooth_degree",
+                     "shape_imperfection", "shape_degree", "bending", "method",
                      "energy_convention")
 RESULT_COLUMNS = ("status", "message", "stop_reason", "steps", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "primary_source",
@@ -272,7 +275,8 @@ def _parameters(point: dict, meta: dict | None) -> dict:
         params, protocol = meta.get("params", {}), meta.get("protocol", {})
         row.update(gamma=params.get("gamma"), nu=params.get("nu"),
                    energy_convention=params.get("energy_convention", "helfrich"))
-        for key in ("seed", "c0_cycle", "jiggle", "temperature", "bending", "method"):
+        for key in ("seed", "c0_cycle", "jiggle", "temperature", "smooth_jiggle",
+                    "smooth_degree", "shape_imperfection", "shape_degree", "bending", "method"):
             if key in protocol:
                 row[key] = protocol[key]
         row["n_vertices"] = meta.get("mesh", {}).get("n_vertices", row["n_vertices"])
