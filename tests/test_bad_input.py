@@ -369,7 +369,7 @@ def test_at_least_150_cases_across_every_command():
     commands = {argv[0] for argv, _, _ in CASES}
     assert len(CASES) >= 150
     assert commands == {"analyze", "classify", "continue", "deflate", "evolver-energy",
-                        "export", "plot", "report", "reproduce-paper", "resume", "sweep",
+                        "export", "plot", "refine", "report", "reproduce-paper", "resume", "sweep",
                         "table", "theory", "view"}
 
 
