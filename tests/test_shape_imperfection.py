@@ -281,3 +281,22 @@ def test_an_imperfect_shell_dents_at_the_same_place_on_two_meshes(tmp_path):
     np.testing.assert_allclose(p[0], p[1], rtol=0.03)
     axes = [_dent_axis(reference_directions(run.store.X0), run.positions(-1)) for run in runs]
     assert np.degrees(np.arccos(np.clip(axes[0] @ axes[1], -1.0, 1.0))) < 3.0
+
+
+def test_a_continued_imperfect_shell_keeps_its_seed_and_the_api_refuses_before_any_folder(
+        tmp_path):
+    from shellbuckle.run import continue_from, deflate
+
+    mesh = random_sphere(600, seed=2)
+    params = ShellParameters.from_gamma(271.0, nu=1 / 3)
+    run = deflate(mesh, params, out=tmp_path / "p", schedule=[0.03], smooth_jiggle=0.0,
+                  shape_imperfection=0.004, shape_degree=6, seed=2, threads=1, locate=False)
+    with pytest.raises(ValueError, match="keeps the seed"):
+        continue_from(run, 1, tmp_path / "b", schedule=[0.06], seed=7)
+    assert not (tmp_path / "b").exists()
+    with pytest.raises(ValueError, match="form_factors"):
+        deflate(mesh, params, out=tmp_path / "ff", schedule=[0.03], smooth_jiggle=0.0,
+                shape_imperfection=0.004, form_factors=np.ones((len(mesh.faces), 3)))
+    assert not (tmp_path / "ff").exists()
+    with pytest.raises(ValueError, match="shape_degree"):
+        Protocol.paper(until=0.1, shape_imperfection=1e-4, shape_degree=31)

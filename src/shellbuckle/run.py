@@ -120,6 +120,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                          "imperfection)")
     if shape_imperfection is not None or shape_degree is not None:
         options.update(shape_imperfection=shape_imperfection, shape_degree=shape_degree)
+        if form_factors is not None and shape_imperfection:
+            raise ValueError("a shape imperfection sets the rest state itself: give it or "
+                             "form_factors (Surface Evolver's rest metrics), not both")
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
@@ -253,6 +256,9 @@ def _branch_fields(parent: Run, step: int, options: dict) -> dict:
     """The protocol fields of a branch from step ``step``: the parent's, with ``options``
     replacing them and the c0 in force at that step (after a c0 path)."""
     base = parent.protocol
+    if base.shape_imperfection and options.get("seed", base.seed) != base.seed:
+        raise ValueError(f"seed {options['seed']!r}: a continued run keeps the seed "
+                         f"{base.seed} of its parent, whose shape imperfection it draws")
     # a jiggle option left at None keeps the parent's; one given replaces the parent's others
     kinds = {"jiggle": ("jiggle",), "temperature": ("temperature",),
              "smooth": ("smooth_jiggle", "smooth_degree")}

@@ -154,7 +154,7 @@ class SweepSpec:
       ``None`` among the amplitudes adds the per-vertex runs too. ``smooth_degree`` needs an
       amplitude;
     - ``shape_imperfection`` (rms radial displacement of the stress-free shape in units of R,
-      in [0, 0.1]; default None: a spherical shell) and ``shape_degree`` (integers in [2, 400];
+      in [0, 0.1]; default None: a spherical shell) and ``shape_degree`` (integers in [2, 30];
       None: the default degree): the shell's own imperfection
       (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`), drawn with each run's
       seed, whatever the jiggle; ``None`` among the amplitudes adds spherical shells too.
@@ -270,7 +270,7 @@ class SweepSpec:
 
     def _check_shape(self, put) -> None:
         """The shape imperfection's axes: in range; a degree only with an amplitude."""
-        from .protocol.deflate import MAX_SMOOTH_DEGREE, MAX_SMOOTH_JIGGLE
+        from .protocol.deflate import MAX_SHAPE_DEGREE, MAX_SMOOTH_JIGGLE
 
         put("shape_imperfection", tuple(
             None if a is None else
@@ -281,12 +281,12 @@ class SweepSpec:
             for a in _values("shape_imperfection", self.shape_imperfection)))
         put("shape_degree", tuple(
             None if L is None else
-            _integer("shape_degree", L, 2, f"integers in [2, {MAX_SMOOTH_DEGREE}], or none")
+            _integer("shape_degree", L, 2, f"integers in [2, {MAX_SHAPE_DEGREE}], or none")
             for L in _values("shape_degree", self.shape_degree)))
         for L in self.shape_degree:
-            if L is not None and L > MAX_SMOOTH_DEGREE:
+            if L is not None and L > MAX_SHAPE_DEGREE:
                 raise ValueError(f"shape_degree = {L!r} is out of range; allowed: integers in "
-                                 f"[2, {MAX_SMOOTH_DEGREE}], or none")
+                                 f"[2, {MAX_SHAPE_DEGREE}], or none")
         if self.shape_imperfection == (None,) and self.shape_degree != (None,):
             raise ValueError(f"shape_degree {list(self.shape_degree)} is the degree of the "
                              "shape imperfection: give it with shape_imperfection")

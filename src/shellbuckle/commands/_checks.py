@@ -141,10 +141,10 @@ RANGES = {
                                 "shape in units of R: an imperfection, not a new shape"),
     "shape_imperfection_d": Range(0, 1000, reason="in units of the thickness d; d/R times it "
                                   "must lie in [0, 0.1] (units of R), which is checked next"),
-    "shape_degree": Range(2, 400, integer=True,
-                          reason="degree 0 is a volume change and 1 a translation; at 400 the "
-                                 f"mesh that resolves it needs about {MAX_VERTICES} vertices; "
-                                 "the mesh's own limit is checked next"),
+    "shape_degree": Range(2, 30, integer=True,
+                          reason="degree 0 is a volume change and 1 a translation; the "
+                                 "shape's curvature is checked on a grid that resolves 30; the "
+                                 "mesh's own limit is checked next"),
     "smooth_degree": Range(2, 400, integer=True,
                            reason="degree 0 is a volume change and 1 a translation; at 400 the "
                                   f"mesh that resolves it needs about {MAX_VERTICES} vertices; "

@@ -57,7 +57,7 @@ class ShellEnergy:
         if given, else the shape of ``reference`` (positions, default ``mesh.X``: the
         stress-free initial sphere); ``c0`` defaults to ``2/R`` (stress-free sphere), times
         ``c0_profile (V,)`` vertex by vertex if given (a stress-free shape that is not a
-        sphere, :func:`~shellbuckle.protocol.imperfection.curvature_profile`). The
+        sphere, :func:`~shellbuckle.protocol.imperfection.stress_free_shape`). The
         bending term has the modulus ``params.kappa_helfrich`` of the parameters' energy
         convention (``params.kappa`` under the default helfrich convention).
         """

@@ -121,6 +121,10 @@ MAX_SMOOTH_JIGGLE = 0.1
 """Largest rms amplitude of the smooth imperfection, in units of the reference radius R: an
 imperfection, not a new shape (at L = 20 its rms slope is already about 1 there)."""
 
+MAX_SHAPE_DEGREE = 30
+"""Highest degree L of the shape imperfection: the fixed grid on which its curvature is
+checked (:data:`.imperfection.CHECK_POINTS`) samples 8 points per wavelength at L = 30."""
+
 MAX_SMOOTH_DEGREE = 400
 """Highest degree L of the smooth imperfection: 4 mean edges per wavelength 2 pi R / L
 (:data:`.imperfection.EDGES_PER_WAVELENGTH`) need about 10^6 vertices at L = 400."""
@@ -267,7 +271,7 @@ class Protocol:
 
     def _check_shape(self) -> None:
         """The shape imperfection's options: an amplitude in [0, MAX_SMOOTH_JIGGLE], a degree
-        in [2, MAX_SMOOTH_DEGREE] (default DEFAULT_DEGREE) only with an amplitude; the
+        in [2, MAX_SHAPE_DEGREE] (default DEFAULT_DEGREE) only with an amplitude; the
         stress-free shape's curvature positive everywhere is checked last
         (:func:`~.imperfection.check_shape`, which needs the seed)."""
         a, L = self.shape_imperfection, self.shape_degree
@@ -283,9 +287,9 @@ class Protocol:
                              f"{a!r}")
         L = DEFAULT_DEGREE if L is None else L
         if isinstance(L, bool) or not (isinstance(L, (int, np.integer))
-                                       and 2 <= L <= MAX_SMOOTH_DEGREE):
+                                       and 2 <= L <= MAX_SHAPE_DEGREE):
             raise ValueError(f"shape_degree (highest degree L of the shape imperfection) must "
-                             f"be an integer in [2, {MAX_SMOOTH_DEGREE}], got {L!r}")
+                             f"be an integer in [2, {MAX_SHAPE_DEGREE}], got {L!r}")
         object.__setattr__(self, "shape_imperfection", float(a))
         object.__setattr__(self, "shape_degree", int(L))
 
@@ -441,6 +445,9 @@ def init(mesh: Mesh, params, protocol: Protocol, form_factors=None, threads: int
         raise ValueError("a shape imperfection sets the rest state itself: give it or "
                          "form_factors (Surface Evolver's rest metrics), not both")
     X_rest, profile = protocol.stress_free(mesh.X)
+    if profile is not None and not profile.min() > 0:
+        raise ValueError(f"the shape imperfection inverts the curvature at a vertex (lowest "
+                         f"{profile.min():.3g} times the sphere's): not an imperfect sphere")
     energy = ShellEnergy.build(mesh, params, bending=protocol.bending, c0=c0, reference=X_rest,
                                form_factors=form_factors, c0_profile=profile)
     volume = Volume(mesh.faces, mesh.n_vertices)
