@@ -92,10 +92,11 @@ def _cmd(args) -> int:
                                      options)
     options.setdefault("bending", from_file.get("bending"))
     options.setdefault("c0", from_file.get("c0"))
-    if from_file.get("form_factors") is not None and options.get("shape_imperfection"):
+    if args.mesh is not None and options.get("shape_imperfection"):
         flag = "--shape-imperfection" + ("-d" if "shape_imperfection_d" in options else "")
-        raise ValueError(f"{flag} {typed(args, flag)}: allowed: without a --mesh file that "
-                         f"brings its own rest state (form_factors); {args.mesh} does")
+        raise ValueError(f"{flag} {typed(args, flag)}: allowed: on a randomized or icosahedral "
+                         f"sphere (--vertices, --icosphere), not on a --mesh file, whose "
+                         f"vertices would be moved onto a sphere ({args.mesh})")
     options = {k: v for k, v in options.items() if v is not None and k not in IN_D}
     run = deflate(mesh, params, out=args.out, progress=not args.quiet,
                   form_factors=from_file.get("form_factors"), threads=args.threads, **located,
