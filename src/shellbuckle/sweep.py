@@ -240,26 +240,11 @@ class SweepSpec:
     def _check_smooth(self, put) -> None:
         """The smooth imperfection's axes: in range, and exclusive with the per-vertex jiggle
         (:class:`~shellbuckle.protocol.deflate.Protocol` takes one or the other)."""
-        from .protocol.deflate import MAX_SMOOTH_DEGREE, MAX_SMOOTH_JIGGLE
+        from .protocol.deflate import MAX_SMOOTH_DEGREE
 
-        put("smooth_jiggle", tuple(
-            None if a is None else
-            _real("smooth_jiggle", a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False, high_open=False,
-                  allowed=f"0 <= smooth_jiggle <= {MAX_SMOOTH_JIGGLE:g} (units of R), or none")
-            for a in _values("smooth_jiggle", self.smooth_jiggle)))
-        put("smooth_degree", tuple(
-            None if L is None else
-            _integer("smooth_degree", L, 2, f"integers in [2, {MAX_SMOOTH_DEGREE}], or none")
-            for L in _values("smooth_degree", self.smooth_degree)))
-        for L in self.smooth_degree:
-            if L is not None and L > MAX_SMOOTH_DEGREE:
-                raise ValueError(f"smooth_degree = {L!r} is out of range; allowed: integers in "
-                                 f"[2, {MAX_SMOOTH_DEGREE}], or none")
+        self._check_field_axes(put, "smooth", "smooth_jiggle", MAX_SMOOTH_DEGREE)
         smooth = [a for a in self.smooth_jiggle if a is not None]
         if not smooth:
-            if self.smooth_degree != (None,):
-                raise ValueError(f"smooth_degree {list(self.smooth_degree)} is the degree of the "
-                                 "smooth imperfection: give it with smooth_jiggle")
             return
         if None not in self.smooth_jiggle and (
                 self.jiggle != (None,) or self.temperature != (DEFAULT_TEMPERATURE,)):
@@ -268,29 +253,36 @@ class SweepSpec:
                              f"{list(self.temperature)}), not both; allowed: none among "
                              "smooth_jiggle to add per-vertex runs")
 
+    def _check_field_axes(self, put, kind: str, amplitude: str, max_degree: int) -> None:
+        """The axes of the ``kind`` imperfection: amplitudes ``amplitude`` in [0,
+        MAX_SMOOTH_JIGGLE] (units of R) or None, degrees ``<kind>_degree`` in [2,
+        ``max_degree``] or None, a degree only with an amplitude."""
+        from .protocol.deflate import MAX_SMOOTH_JIGGLE
+
+        degree = f"{kind}_degree"
+        put(amplitude, tuple(
+            None if a is None else
+            _real(amplitude, a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False, high_open=False,
+                  allowed=f"0 <= {amplitude} <= {MAX_SMOOTH_JIGGLE:g} (units of R), or none")
+            for a in _values(amplitude, getattr(self, amplitude))))
+        put(degree, tuple(
+            None if L is None else
+            _integer(degree, L, 2, f"integers in [2, {max_degree}], or none")
+            for L in _values(degree, getattr(self, degree))))
+        for L in getattr(self, degree):
+            if L is not None and L > max_degree:
+                raise ValueError(f"{degree} = {L!r} is out of range; allowed: integers in "
+                                 f"[2, {max_degree}], or none")
+        if all(a is None for a in getattr(self, amplitude)) and getattr(self, degree) != (None,):
+            raise ValueError(f"{degree} {list(getattr(self, degree))} is the degree of the "
+                             f"{kind} imperfection: give it with {amplitude}")
+
     def _check_shape(self, put) -> None:
         """The shape imperfection's axes: in range; a degree only with an amplitude."""
-        from .protocol.deflate import MAX_SHAPE_DEGREE, MAX_SMOOTH_JIGGLE
-
-        put("shape_imperfection", tuple(
-            None if a is None else
-            _real("shape_imperfection", a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False,
-                  high_open=False,
-                  allowed=f"0 <= shape_imperfection <= {MAX_SMOOTH_JIGGLE:g} (units of R), "
-                          "or none")
-            for a in _values("shape_imperfection", self.shape_imperfection)))
-        put("shape_degree", tuple(
-            None if L is None else
-            _integer("shape_degree", L, 2, f"integers in [2, {MAX_SHAPE_DEGREE}], or none")
-            for L in _values("shape_degree", self.shape_degree)))
-        for L in self.shape_degree:
-            if L is not None and L > MAX_SHAPE_DEGREE:
-                raise ValueError(f"shape_degree = {L!r} is out of range; allowed: integers in "
-                                 f"[2, {MAX_SHAPE_DEGREE}], or none")
-        if self.shape_imperfection == (None,) and self.shape_degree != (None,):
-            raise ValueError(f"shape_degree {list(self.shape_degree)} is the degree of the "
-                             "shape imperfection: give it with shape_imperfection")
+        from .protocol.deflate import MAX_SHAPE_DEGREE
         from .protocol.imperfection import DEFAULT_DEGREE, check_shape
+
+        self._check_field_axes(put, "shape", "shape_imperfection", MAX_SHAPE_DEGREE)
 
         for a in self.shape_imperfection:
             for L in self.shape_degree if a else ():

@@ -161,23 +161,16 @@ def _check(spec, given: dict, config, gamma_text=None) -> None:
     gamma = max(spec.gamma)
     n, mesh = min(meshes)
     check_mesh("--gamma", gamma_text or f"{gamma:g}", gamma, n, gamma_effective=gamma / factor, mesh=mesh)
-    if any(a is not None for a in spec.smooth_jiggle):
-        from ..protocol.imperfection import DEFAULT_DEGREE
+    from ..protocol.imperfection import DEFAULT_DEGREE
 
-        degree = max(DEFAULT_DEGREE if L is None else L for L in spec.smooth_degree)
-        if None not in spec.smooth_degree:
-            option, text = "--smooth-degree", degree
+    for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
+        amplitudes, degrees = getattr(spec, amplitude), getattr(spec, f"{kind}_degree")
+        if all(a is None for a in amplitudes):
+            continue
+        degree = max(DEFAULT_DEGREE if L is None else L for L in degrees)
+        if None not in degrees:
+            option, text = f"--{kind}-degree", degree
         else:
-            option = "--smooth-jiggle"
-            text = ",".join(f"{a:g}" for a in spec.smooth_jiggle if a is not None)
-        check_smooth_degree(option, text, degree, n, mesh=mesh)
-    if any(a is not None for a in spec.shape_imperfection):
-        from ..protocol.imperfection import DEFAULT_DEGREE
-
-        degree = max(DEFAULT_DEGREE if L is None else L for L in spec.shape_degree)
-        if None not in spec.shape_degree:
-            option, text = "--shape-degree", degree
-        else:
-            option = "--shape-imperfection"
-            text = ",".join(f"{a:g}" for a in spec.shape_imperfection if a is not None)
-        check_smooth_degree(option, text, degree, n, mesh=mesh, kind="shape")
+            option = "--" + amplitude.replace("_", "-")
+            text = ",".join(f"{a:g}" for a in amplitudes if a is not None)
+        check_smooth_degree(option, text, degree, n, mesh=mesh, kind=kind)

@@ -247,51 +247,44 @@ class Protocol:
         """The smooth imperfection's options: exclusive with the per-vertex jiggles, an
         amplitude in [0, MAX_SMOOTH_JIGGLE], a degree in [2, MAX_SMOOTH_DEGREE] (default
         DEFAULT_DEGREE) only with an amplitude."""
-        a, L = self.smooth_jiggle, self.smooth_degree
-        if a is None:
-            if L is not None:
-                raise ValueError(f"smooth_degree (got {L!r}) is the degree of the smooth "
-                                 "imperfection: give it with smooth_jiggle")
-            return
-        if self.jiggle is not None or self.temperature is not None:
+        a = self.smooth_jiggle
+        if a is not None and (self.jiggle is not None or self.temperature is not None):
             raise ValueError(f"give either smooth_jiggle (a smooth imperfection, got {a!r}) or "
                              f"a per-vertex jiggle (jiggle {self.jiggle!r}, temperature "
                              f"{self.temperature!r}), not both")
+        self._check_field("smooth", "smooth_jiggle", "rms amplitude in units of R",
+                          MAX_SMOOTH_DEGREE)
+
+    def _check_field(self, kind: str, amplitude: str, meaning: str, max_degree: int) -> None:
+        """The amplitude field ``amplitude`` (``meaning``) of the ``kind`` imperfection in [0,
+        MAX_SMOOTH_JIGGLE] and its degree ``<kind>_degree`` in [2, ``max_degree``] (default
+        DEFAULT_DEGREE), the degree only with an amplitude; both stored as float and int."""
+        degree = f"{kind}_degree"
+        a, L = getattr(self, amplitude), getattr(self, degree)
+        if a is None:
+            if L is not None:
+                raise ValueError(f"{degree} (got {L!r}) is the degree of the {kind} "
+                                 f"imperfection: give it with {amplitude}")
+            return
         if isinstance(a, bool) or not (isinstance(a, (int, float, np.integer, np.floating))
                                        and 0 <= a <= MAX_SMOOTH_JIGGLE):
-            raise ValueError(f"smooth_jiggle (rms amplitude in units of R) must be in [0, "
-                             f"{MAX_SMOOTH_JIGGLE:g}], got {a!r}")
+            raise ValueError(f"{amplitude} ({meaning}) must be in [0, {MAX_SMOOTH_JIGGLE:g}], "
+                             f"got {a!r}")
         L = DEFAULT_DEGREE if L is None else L
         if isinstance(L, bool) or not (isinstance(L, (int, np.integer))
-                                       and 2 <= L <= MAX_SMOOTH_DEGREE):
-            raise ValueError(f"smooth_degree (highest degree L of the smooth imperfection) "
-                             f"must be an integer in [2, {MAX_SMOOTH_DEGREE}], got {L!r}")
-        object.__setattr__(self, "smooth_jiggle", float(a))
-        object.__setattr__(self, "smooth_degree", int(L))
+                                       and 2 <= L <= max_degree):
+            raise ValueError(f"{degree} (highest degree L of the {kind} imperfection) must be "
+                             f"an integer in [2, {max_degree}], got {L!r}")
+        object.__setattr__(self, amplitude, float(a))
+        object.__setattr__(self, degree, int(L))
 
     def _check_shape(self) -> None:
         """The shape imperfection's options: an amplitude in [0, MAX_SMOOTH_JIGGLE], a degree
         in [2, MAX_SHAPE_DEGREE] (default DEFAULT_DEGREE) only with an amplitude; the
         stress-free shape's curvature positive everywhere is checked last
         (:func:`~.imperfection.check_shape`, which needs the seed)."""
-        a, L = self.shape_imperfection, self.shape_degree
-        if a is None:
-            if L is not None:
-                raise ValueError(f"shape_degree (got {L!r}) is the degree of the shape "
-                                 "imperfection: give it with shape_imperfection")
-            return
-        if isinstance(a, bool) or not (isinstance(a, (int, float, np.integer, np.floating))
-                                       and 0 <= a <= MAX_SMOOTH_JIGGLE):
-            raise ValueError(f"shape_imperfection (rms radial displacement of the stress-free "
-                             f"shape in units of R) must be in [0, {MAX_SMOOTH_JIGGLE:g}], got "
-                             f"{a!r}")
-        L = DEFAULT_DEGREE if L is None else L
-        if isinstance(L, bool) or not (isinstance(L, (int, np.integer))
-                                       and 2 <= L <= MAX_SHAPE_DEGREE):
-            raise ValueError(f"shape_degree (highest degree L of the shape imperfection) must "
-                             f"be an integer in [2, {MAX_SHAPE_DEGREE}], got {L!r}")
-        object.__setattr__(self, "shape_imperfection", float(a))
-        object.__setattr__(self, "shape_degree", int(L))
+        self._check_field("shape", "shape_imperfection", "rms radial displacement of the "
+                          "stress-free shape in units of R", MAX_SHAPE_DEGREE)
 
     def stress_free(self, X_reference: np.ndarray):
         """The stress-free shape of the run's shell and the profile of its spontaneous
