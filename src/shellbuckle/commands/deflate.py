@@ -151,32 +151,24 @@ def _protocol(args) -> dict:
 def _check_smooth_options(args, options: dict) -> None:
     """The smooth imperfection (``--smooth-jiggle`` or ``--smooth-jiggle-d``, and
     ``--smooth-degree``) replaces the per-vertex jiggle: one amplitude, without
-    ``--temperature`` or ``--jiggle``; a degree only with an amplitude."""
-    given = [name for name in ("smooth_jiggle", "smooth_jiggle_d") if name in options]
-    if len(given) == 2:
-        raise ValueError(f"--smooth-jiggle-d {typed(args, '--smooth-jiggle-d')}: give either "
-                         "--smooth-jiggle (units of R) or --smooth-jiggle-d (units of the "
-                         "thickness d), not both")
-    if given:
-        flag = "--" + given[0].replace("_", "-")
-        for other in ("temperature", "jiggle"):
-            if other in options:
-                raise ValueError(f"{flag} {typed(args, flag, options[given[0]])}: allowed: "
-                                 f"without --{other} (the smooth imperfection replaces Surface "
-                                 "Evolver's per-vertex jiggle)")
-    elif "smooth_degree" in options:
-        raise ValueError(f"--smooth-degree {typed(args, '--smooth-degree')}: allowed: only "
-                         "with --smooth-jiggle or --smooth-jiggle-d (the highest degree of the "
-                         "smooth imperfection)")
-    if "shape_imperfection" in options and "shape_imperfection_d" in options:
-        raise ValueError(f"--shape-imperfection-d {typed(args, '--shape-imperfection-d')}: give "
-                         "either --shape-imperfection (units of R) or --shape-imperfection-d "
-                         "(units of the thickness d), not both")
-    if "shape_degree" in options and not ({"shape_imperfection", "shape_imperfection_d"}
-                                          & set(options)):
-        raise ValueError(f"--shape-degree {typed(args, '--shape-degree')}: allowed: only with "
-                         "--shape-imperfection or --shape-imperfection-d (the highest degree of "
-                         "the shape imperfection)")
+    ``--temperature`` or ``--jiggle``; the shape imperfection likewise takes one amplitude;
+    a degree only with an amplitude."""
+    for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
+        flag, degree = "--" + amplitude.replace("_", "-"), f"--{kind}-degree"
+        given = [name for name in (amplitude, amplitude + "_d") if name in options]
+        if len(given) == 2:
+            raise ValueError(f"{flag}-d {typed(args, flag + '-d')}: give either {flag} (units "
+                             f"of R) or {flag}-d (units of the thickness d), not both")
+        if given and kind == "smooth":
+            used = "--" + given[0].replace("_", "-")
+            for other in ("temperature", "jiggle"):
+                if other in options:
+                    raise ValueError(f"{used} {typed(args, used, options[given[0]])}: allowed: "
+                                     f"without --{other} (the smooth imperfection replaces "
+                                     "Surface Evolver's per-vertex jiggle)")
+        elif not given and f"{kind}_degree" in options:
+            raise ValueError(f"{degree} {typed(args, degree)}: allowed: only with {flag} or "
+                             f"{flag}-d (the highest degree of the {kind} imperfection)")
 
 
 def _shell(args, seed: int, options: dict):
