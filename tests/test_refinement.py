@@ -20,6 +20,7 @@ from shellbuckle.cli import main as cli_main
 from shellbuckle.locate import located
 from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run
+from shellbuckle.store.run import RunStore
 from shellbuckle.studies import refinement
 from shellbuckle.studies.refinement import energy_at, mean_edge, richardson
 
@@ -98,14 +99,31 @@ def test_default_amplitude_is_the_papers_jiggle_in_the_resolved_degrees():
     # white noise of std sigma at N vertices: sigma^2 M / N in M = (L+1)^2 - 4 harmonics
     assert refinement.paper_equivalent_amplitude(20) == pytest.approx(
         0.028 * math.sqrt(437 / 3594))
-    spec = refinement.study_spec(smooth_degree=6)
+    spec = refinement.study_spec(smooth_degree=6, shape_imperfection_d=0)  # spherical shells
     assert spec.smooth_jiggle == (round(0.028 * math.sqrt(45 / 3594), 5),)
+    assert spec.shape_imperfection_d == (None,) and spec.shape_imperfection == (None,)
+
+
+def test_default_study_is_the_imperfect_shell_without_jiggle():
+    # 0.1 of the effective thickness, degrees up to the classical buckling band, no jiggle
+    points = refinement.study_spec(gammas=[2333.0], vertices=[3594, 10000]).points()
+    assert len(points) == 4
+    for p in points:
+        g_eff = 2333.0 * (4.0 if p["energy_convention"] == "paper" else 1.0)
+        d = math.sqrt(8.0 / g_eff)  # gamma = 8 (R/d)^2 at nu = 1/3
+        assert p["shape_imperfection"] == pytest.approx(0.1 * d, rel=1e-12)
+        assert p["shape_imperfection_d"] == 0.1
+        lc = (math.sqrt(1.0 + 4.0 * math.sqrt(g_eff)) - 1.0) / 2.0
+        assert p["shape_degree"] == math.ceil(lc) + 1
+        assert p["smooth_jiggle"] == 0.0 and p["smooth_degree"] is None
 
 
 # --------------------------------------------------------------------------- the command
 
+# spherical shells with a smooth jiggle (the study's default is the imperfect shell)
 ARGS = ["--gamma", "271", "--energy-convention", "helfrich", "--vertices", "300,600",
-        "--smooth-degree", "6", "--until", "0.3", "--workers", "1", "--quiet"]
+        "--shape-imperfection-d", "0", "--smooth-degree", "6", "--until", "0.3",
+        "--workers", "1", "--quiet"]
 
 
 @pytest.fixture(scope="module")
@@ -157,6 +175,27 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
     assert np.isfinite(ends["mean"]).all()
 
 
+def test_the_default_study_deflates_the_same_imperfect_shell_on_every_mesh(tmp_path):
+    # the default: 0.1 effective thickness of shape imperfection up to the classical buckling
+    # band (gamma 271: l_c (l_c + 1) = sqrt(271), l_c = 3.59, L = 5), no jiggle; under
+    # ``paper`` the shell is that of gamma_eff = 4 gamma (d halved, L = 7)
+    out = tmp_path / "study"
+    assert cli_main(["refine", "--gamma", "271", "--vertices", "300,600", "--until", "0.04",
+                     "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    runs = collect_runs([out])
+    assert len(runs) == 4 and (runs["status"] == "finished").all()
+    for _, run in runs.iterrows():
+        meta = RunStore.open(run["path"]).meta
+        params, protocol = meta["params"], meta["protocol"]
+        g_eff = params["gamma"] * (4.0 if params["energy_convention"] == "paper" else 1.0)
+        assert protocol["shape_imperfection"] == pytest.approx(
+            0.1 * math.sqrt(8.0 / g_eff), rel=1e-12)  # gamma = 8 (R/d)^2 at nu = 1/3
+        assert protocol["shape_degree"] == (7 if params["energy_convention"] == "paper" else 5)
+        assert protocol["smooth_jiggle"] == 0.0
+    text = (out / refinement.MARKDOWN).read_text()
+    assert "imperfect shell's branch end" in text and "(0.1 d)" in text and "no jiggle" in text
+
+
 def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     steps = {p: p.stat().st_mtime_ns for p in study.glob("g*/steps/*")}
     (study / refinement.CSV).unlink()
@@ -172,8 +211,18 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     (["--gamma", "271,abc"], "'abc'"),
     (["--vertices", "300"], "--vertices 300"),
     (["--vertices", "300,600", "--gamma", "1e6"], "--vertices 300,600"),
-    (["--gamma", "271", "--vertices", "300,600", "--smooth-degree", "9"], "--smooth-degree 9"),
-    (["--gamma", "271", "--vertices", "300,600"], "--vertices 300,600"),  # degree 20
+    (["--gamma", "271", "--vertices", "300,600", "--shape-imperfection-d", "0",
+      "--smooth-degree", "9"], "--smooth-degree 9"),
+    (["--gamma", "271", "--vertices", "300,600", "--shape-imperfection-d", "0"],
+     "--vertices 300,600"),  # the smooth jiggle's degree 20
+    (["--gamma", "271", "--vertices", "300,600", "--smooth-degree", "6"],
+     "--smooth-degree 6"),  # no jiggle on imperfect shells: no degree
+    (["--gamma", "271", "--vertices", "300,600", "--shape-degree", "12"],
+     "--shape-degree 12"),  # 300 vertices resolve L <= 7
+    (["--gamma", "2333", "--shape-imperfection-d", "2"], "--shape-imperfection-d 2"),
+    (["--shape-degree", "critic"], "--shape-degree critic"),
+    (["--shape-imperfection", "0.001", "--shape-imperfection-d", "0.1"],
+     "--shape-imperfection-d 0.1"),
     (["--energy-convention", "helfrich,kirchhoff"], "kirchhoff"),
     (["--smooth-jiggle", "0.5"], "--smooth-jiggle 0.5"),
     (["--until", "0.01"], "--until 0.01"),

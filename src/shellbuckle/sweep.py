@@ -67,12 +67,15 @@ LOCK_POLL_S = 2.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
          "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree",
-         "shape_imperfection", "shape_degree")
+         "shape_imperfection", "shape_imperfection_d", "shape_degree")
 #: Axes of the smooth imperfection: left out of ``sweep.json`` and of the run points while
 #: unset, so that a sweep stored before them resumes with the same description.
 SMOOTH_AXES = ("smooth_jiggle", "smooth_degree")
-#: Axes of the shape imperfection, likewise.
-SHAPE_AXES = ("shape_imperfection", "shape_degree")
+#: Axes of the shape imperfection, likewise (each amplitude axis left out while unset).
+SHAPE_AXES = ("shape_imperfection", "shape_imperfection_d", "shape_degree")
+#: Largest amplitude in units of the thickness (an rms radial displacement of 1000 d is a new
+#: shape, not an imperfection; the value in units of R is checked per run).
+MAX_SHAPE_IN_D = 1000.0
 
 
 def _bending_kinds() -> tuple:
@@ -92,6 +95,11 @@ def _values(name: str, value) -> tuple:
     if not items:
         raise ValueError(f"{name} must hold at least one value, got an empty list")
     return tuple(dict.fromkeys(items))
+
+
+def _empty(value) -> bool:
+    """Whether an axis is given as an empty list."""
+    return isinstance(value, (list, tuple)) and len(value) == 0
 
 
 def _convention(value) -> str:
@@ -158,6 +166,13 @@ class SweepSpec:
       None: the default degree): the shell's own imperfection
       (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`), drawn with each run's
       seed, whatever the jiggle; ``None`` among the amplitudes adds spherical shells too.
+      ``shape_imperfection_d`` gives amplitudes in units of each shell's thickness instead
+      (in [0, 1000]; the effective thickness of the energy convention,
+      :attr:`~shellbuckle.params.ShellParameters.d_over_R_effective`, so that ``0.1`` is the
+      same imperfection for the mechanics of every gamma and convention; the value in units of
+      R must lie in [0, 0.1]); ``shape_degree`` may be ``"critical"``: per shell
+      :func:`~shellbuckle.protocol.imperfection.critical_shape_degree` of its effective gamma
+      (the classical buckling band, degree ``ceil(l_c) + 1``).
 
     ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
     with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
@@ -182,6 +197,7 @@ class SweepSpec:
     smooth_jiggle: tuple = (None,)
     smooth_degree: tuple = (None,)
     shape_imperfection: tuple = (None,)
+    shape_imperfection_d: tuple = (None,)
     shape_degree: tuple = (None,)
     tol: float = 1e-9
     max_iter: int = DEFAULT_MAX_ITER
@@ -196,6 +212,11 @@ class SweepSpec:
         put("seeds", tuple(_integer("seed", s, 0, "integers >= 0")
                            for s in _values("seeds", self.seeds)))
         vertices, levels = self.vertices, self.icosphere
+        # an empty axis is an unset one (to_dict writes both), unless both are
+        if _empty(vertices) and levels is not None and not _empty(levels):
+            vertices = None
+        if _empty(levels) and vertices is not None and not _empty(vertices):
+            levels = None
         if vertices is None and levels is None:
             vertices = (PAPER_VERTICES,)
         put("vertices", () if vertices is None else tuple(
@@ -253,10 +274,12 @@ class SweepSpec:
                              f"{list(self.temperature)}), not both; allowed: none among "
                              "smooth_jiggle to add per-vertex runs")
 
-    def _check_field_axes(self, put, kind: str, amplitude: str, max_degree: int) -> None:
+    def _check_field_axes(self, put, kind: str, amplitude: str, max_degree: int,
+                          in_d: str | None = None, keyword: str | None = None) -> None:
         """The axes of the ``kind`` imperfection: amplitudes ``amplitude`` in [0,
-        MAX_SMOOTH_JIGGLE] (units of R) or None, degrees ``<kind>_degree`` in [2,
-        ``max_degree``] or None, a degree only with an amplitude."""
+        MAX_SMOOTH_JIGGLE] (units of R) or None (and ``in_d``'s in [0, MAX_SHAPE_IN_D], units
+        of d, if given), degrees ``<kind>_degree`` in [2, ``max_degree``], ``keyword`` or
+        None, a degree only with an amplitude."""
         from .protocol.deflate import MAX_SMOOTH_JIGGLE
 
         degree = f"{kind}_degree"
@@ -265,32 +288,85 @@ class SweepSpec:
             _real(amplitude, a, 0.0, MAX_SMOOTH_JIGGLE, low_open=False, high_open=False,
                   allowed=f"0 <= {amplitude} <= {MAX_SMOOTH_JIGGLE:g} (units of R), or none")
             for a in _values(amplitude, getattr(self, amplitude))))
+        amplitudes = [a for a in getattr(self, amplitude) if a is not None]
+        if in_d is not None:
+            put(in_d, tuple(
+                None if b is None else
+                _real(in_d, b, 0.0, MAX_SHAPE_IN_D, low_open=False, high_open=False,
+                      allowed=f"0 <= {in_d} <= {MAX_SHAPE_IN_D:g} (units of d), or none")
+                for b in _values(in_d, getattr(self, in_d))))
+            amplitudes += [b for b in getattr(self, in_d) if b is not None]
+        allowed = f"integers in [2, {max_degree}]" + (f", {keyword!r}" if keyword else "") + \
+            ", or none"
+        for L in _values(degree, getattr(self, degree)):
+            if isinstance(L, str) and L != keyword:
+                raise ValueError(f"{degree} = {L!r} is not known; allowed: {allowed}")
         put(degree, tuple(
-            None if L is None else
-            _integer(degree, L, 2, f"integers in [2, {max_degree}], or none")
+            L if L is None or (keyword and L == keyword) else _integer(degree, L, 2, allowed)
             for L in _values(degree, getattr(self, degree))))
         for L in getattr(self, degree):
-            if L is not None and L > max_degree:
-                raise ValueError(f"{degree} = {L!r} is out of range; allowed: integers in "
-                                 f"[2, {max_degree}], or none")
-        if all(a is None for a in getattr(self, amplitude)) and getattr(self, degree) != (None,):
+            if isinstance(L, int) and L > max_degree:
+                raise ValueError(f"{degree} = {L!r} is out of range; allowed: {allowed}")
+        if not amplitudes and getattr(self, degree) != (None,):
             raise ValueError(f"{degree} {list(getattr(self, degree))} is the degree of the "
-                             f"{kind} imperfection: give it with {amplitude}")
+                             f"{kind} imperfection: give it with {amplitude}"
+                             + (f" or {in_d}" if in_d else ""))
 
     def _check_shape(self, put) -> None:
-        """The shape imperfection's axes: in range; a degree only with an amplitude."""
-        from .protocol.deflate import MAX_SHAPE_DEGREE
-        from .protocol.imperfection import DEFAULT_DEGREE, check_shape
+        """The shape imperfection's axes: in range; a degree only with an amplitude; every
+        shell of the grid with a positive curvature (and, in units of d, an amplitude in range
+        in units of R)."""
+        from .protocol.deflate import MAX_SHAPE_DEGREE, MAX_SMOOTH_JIGGLE
+        from .protocol.imperfection import CRITICAL, DEFAULT_DEGREE, check_shape
 
-        self._check_field_axes(put, "shape", "shape_imperfection", MAX_SHAPE_DEGREE)
-
-        for a in self.shape_imperfection:
-            for L in self.shape_degree if a else ():
-                for seed in _values("seeds", self.seeds):
+        self._check_field_axes(put, "shape", "shape_imperfection", MAX_SHAPE_DEGREE,
+                               in_d="shape_imperfection_d", keyword=CRITICAL)
+        if any(b is not None for b in self.shape_imperfection_d) and \
+                any(a is not None for a in self.shape_imperfection):
+            raise ValueError("give either shape_imperfection (units of R) or "
+                             "shape_imperfection_d (units of d), not both")
+        if any(b is not None for b in self.shape_imperfection_d):
+            for nu in self.nu:
+                if nu >= 0.5:
+                    raise ValueError(f"shape_imperfection_d needs a thickness: d/R is undefined "
+                                     f"for nu = {nu!r}; allowed: nu < 1/2")
+        for convention, gamma, nu in itertools.product(self.energy_convention, self.gamma,
+                                                       self.nu):
+            for a, L, b in self.shapes(convention, gamma, nu):
+                if b is not None and not 0.0 <= a <= MAX_SMOOTH_JIGGLE:
+                    raise ValueError(f"shape_imperfection_d = {b!r}: gives an rms amplitude of "
+                                     f"{a:.4g} R at gamma = {gamma:g} ({convention}); allowed: "
+                                     f"at most {MAX_SMOOTH_JIGGLE:g} R")
+                for seed in self.seeds if a else ():
                     try:
                         check_shape(a, DEFAULT_DEGREE if L is None else L, seed)
                     except ValueError as exc:
-                        raise ValueError(f"shape_imperfection = {a!r}: {exc}") from None
+                        name, value = ("shape_imperfection", a) if b is None else \
+                            ("shape_imperfection_d", b)
+                        raise ValueError(f"{name} = {value!r}: {exc}") from None
+
+    def shapes(self, convention: str, gamma: float, nu: float) -> list[tuple]:
+        """The shells of the grid at one (convention, gamma, nu): ``(a, L, b)`` with the
+        amplitude ``a`` in units of R, the degree ``L`` (``None``: the default) and the
+        amplitude ``b`` in units of d it came from (``None`` if given in R);
+        ``(None, None, None)`` is a spherical shell."""
+        from .params import bending_factor, d_over_R
+        from .protocol.imperfection import CRITICAL, critical_shape_degree
+
+        gamma_effective = gamma / bending_factor(convention)
+
+        def degree(L):
+            return critical_shape_degree(gamma_effective) if L == CRITICAL else L
+
+        out = [(None, None, None)] if None in self.shape_imperfection and \
+            None in self.shape_imperfection_d else []
+        out += [(a, degree(L), None) for a in self.shape_imperfection if a is not None
+                for L in self.shape_degree]
+        if any(b is not None for b in self.shape_imperfection_d):
+            d = float(d_over_R(gamma_effective, nu))
+            out += [(b * d, degree(L), b) for b in self.shape_imperfection_d if b is not None
+                    for L in self.shape_degree]
+        return out
 
     # ------------------------------------------------------------------ input
 
@@ -343,9 +419,11 @@ class SweepSpec:
         if self.smooth_jiggle == (None,):
             for name in SMOOTH_AXES:
                 del out[name]
-        if self.shape_imperfection == (None,):
-            for name in SHAPE_AXES:
+        for name in ("shape_imperfection", "shape_imperfection_d"):
+            if getattr(self, name) == (None,):
                 del out[name]
+        if self.shape_imperfection == (None,) and self.shape_imperfection_d == (None,):
+            del out["shape_degree"]
         return out
 
     # ------------------------------------------------------------------ the grid
@@ -366,32 +444,31 @@ class SweepSpec:
             jiggles = []
         jiggles += [(None, None, a, L) for a in self.smooth_jiggle if a is not None
                     for L in self.smooth_degree]
-        shapes = [(None, None)] if None in self.shape_imperfection else []
-        shapes += [(a, L) for a in self.shape_imperfection if a is not None
-                   for L in self.shape_degree]
-        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp, a, L), \
-                (shape, shape_L), bend, method in itertools.product(
-                    self.energy_convention, self.gamma, self.nu, self.meshes(), self.seeds,
-                    self.dv, self.until, self.c0_cycle, jiggles, shapes, self.bending,
-                    self.method):
-            point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
-                     "n_vertices": n if mesh == "random" else 10 * n * n + 2,
-                     "icosphere": n if mesh == "icosphere" else None, "dv": dv, "until": until,
-                     "c0_cycle": cycle, "jiggle": jig, "temperature": temp, "bending": bend,
-                     "method": method, "energy_convention": convention,
-                     "tol": self.tol, "max_iter": self.max_iter,
-                     "stop_at_contact": self.stop_at_contact}
-            if a is not None:  # only then: the points of earlier sweeps keep their keys
-                point.update(smooth_jiggle=a, smooth_degree=L)
-            if shape is not None:
-                point.update(shape_imperfection=shape, shape_degree=shape_L)
-            name = run_name(point)
-            if name in names:
-                raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
-                                 f"{names[name]} and {point}; give values that differ in their "
-                                 "first 3 (nu) or 6 (others) significant digits")
-            names[name] = point
-            out.append({"name": name, **point})
+        for convention, gamma, nu, (mesh, n), seed, dv, until, cycle, (jig, temp, a, L) in \
+                itertools.product(self.energy_convention, self.gamma, self.nu, self.meshes(),
+                                  self.seeds, self.dv, self.until, self.c0_cycle, jiggles):
+            for (shape, shape_L, shape_d), bend, method in itertools.product(
+                    self.shapes(convention, gamma, nu), self.bending, self.method):
+                point = {"gamma": gamma, "nu": nu, "seed": seed, "mesh": mesh,
+                         "n_vertices": n if mesh == "random" else 10 * n * n + 2,
+                         "icosphere": n if mesh == "icosphere" else None, "dv": dv,
+                         "until": until, "c0_cycle": cycle, "jiggle": jig, "temperature": temp,
+                         "bending": bend, "method": method, "energy_convention": convention,
+                         "tol": self.tol, "max_iter": self.max_iter,
+                         "stop_at_contact": self.stop_at_contact}
+                if a is not None:  # only then: the points of earlier sweeps keep their keys
+                    point.update(smooth_jiggle=a, smooth_degree=L)
+                if shape is not None:
+                    point.update(shape_imperfection=shape, shape_degree=shape_L)
+                if shape_d is not None:
+                    point.update(shape_imperfection_d=shape_d)
+                name = run_name(point)
+                if name in names:
+                    raise ValueError(f"two runs of the sweep would share the folder {name!r}: "
+                                     f"{names[name]} and {point}; give values that differ in "
+                                     "their first 3 (nu) or 6 (others) significant digits")
+                names[name] = point
+                out.append({"name": name, **point})
         return out
 
     def __len__(self) -> int:
@@ -402,7 +479,8 @@ def run_name(point: dict) -> str:
     """Folder name of a run: ``g<gamma>_nu<nu>_v<vertices>|ico<level>_s<seed>`` followed by
     the protocol options that differ from the defaults (``_dv<dv>``, ``_until<until>``,
     ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>`` or ``_sj<smooth_jiggle>[_L<degree>]``,
-    ``_si<shape_imperfection>[_Ls<degree>]``, ``_<bending>``, ``_<method>``,
+    ``_si<shape_imperfection>`` or ``_sid<shape_imperfection_d>``, then ``[_Ls<degree>]``,
+    ``_<bending>``, ``_<method>``,
     ``_it<max_iter>``, ``_<energy convention>``), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
@@ -422,10 +500,12 @@ def run_name(point: dict) -> str:
         name += f"_j{_fmt(point['jiggle'])}"
     elif point.get("temperature", DEFAULT_TEMPERATURE) != DEFAULT_TEMPERATURE:
         name += f"_T{_fmt(point['temperature'])}"
-    if point.get("shape_imperfection") is not None:
+    if point.get("shape_imperfection_d") is not None:
+        name += f"_sid{_fmt(point['shape_imperfection_d'])}"
+    elif point.get("shape_imperfection") is not None:
         name += f"_si{_fmt(point['shape_imperfection'])}"
-        if point.get("shape_degree") is not None:
-            name += f"_Ls{point['shape_degree']}"
+    if point.get("shape_imperfection") is not None and point.get("shape_degree") is not None:
+        name += f"_Ls{point['shape_degree']}"
     if point["bending"] != "juelicher":
         name += f"_{point['bending']}"
     if point["method"] != "newton":

@@ -187,7 +187,8 @@ def _options() -> dict:
                 "degrees 2 to --smooth-degree with equal power per degree, applied along the "
                 "normals, with this rms amplitude in units of R", range="smooth_jiggle"),
         _Option("--smooth-jiggle-d", "smooth_jiggle_d", "the rms amplitude of --smooth-jiggle "
-                "in units of the shell thickness d (d/R = sqrt(12 (1 - 2 nu^2/(1-nu))/gamma)); "
+                "in units of the shell thickness d (d/R = sqrt(12 (1 - 2 nu^2/(1-nu))/gamma), "
+                "with the effective gamma of the energy convention: 4 gamma under paper); "
                 "stored in units of R", range="smooth_jiggle_d"),
         _Option("--smooth-degree", "smooth_degree", "highest degree L of the smooth "
                 "imperfection (shortest wavelength 2 pi R/L); the mesh must resolve it with 4 "
@@ -201,7 +202,9 @@ def _options() -> dict:
                 "degree, of this rms amplitude in units of R; the run starts there; combine "
                 "with --smooth-jiggle 0 for no jiggle", range="shape_imperfection"),
         _Option("--shape-imperfection-d", "shape_imperfection_d", "the rms amplitude of "
-                "--shape-imperfection in units of the shell thickness d; stored in units of R",
+                "--shape-imperfection in units of the shell thickness d (as for "
+                "--smooth-jiggle-d: the effective thickness of the energy convention); stored "
+                "in units of R",
                 range="shape_imperfection_d"),
         _Option("--shape-degree", "shape_degree", "highest degree L of the shape imperfection; "
                 "the mesh must resolve it with 4 mean edges per wavelength",

@@ -234,13 +234,13 @@ def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
         in_d = amplitude + "_d"
         flag_d = "--" + in_d.replace("_", "-")
         if options.get(in_d) is not None:
-            value = options[in_d] * params.d_over_R
+            d = params.d_over_R_effective  # the thickness the mechanics sees
+            value = options[in_d] * d
             if RANGES[amplitude].problem(value):
                 raise ValueError(f"{flag_d} {typed(args, flag_d)}: gives an rms amplitude of "
-                                 f"{value:.4g} R at d/R = {params.d_over_R:.4g}; "
-                                 f"{allowed(amplitude)}")
+                                 f"{value:.4g} R at d/R = {d:.4g}; {allowed(amplitude)}")
             options[amplitude] = value
-        if options.get(amplitude) is None:
+        if not options.get(amplitude):  # none, or 0: no field for the mesh to resolve
             continue
         degree = kind + "_degree"
         if options.get(degree) is not None:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ._checks import (add_command, add_number, allowed, check_mesh, check_smooth_degree,
-                      check_value, output_folder, typed)
+from ._checks import (RANGES, add_command, add_number, allowed, check_mesh,
+                      check_smooth_degree, check_value, output_folder, typed)
 from ._options import values
 
 
@@ -13,9 +13,12 @@ def register(sub) -> None:
     parser = add_command(
         sub, "refine", help="the mesh-refinement study: thresholds, W and energies against "
                             "the mesh size, extrapolated to h -> 0",
-        description="Deflate every (energy convention, gamma, mesh size, seed) with the smooth "
-                    "imperfection (the same field on every mesh) as one sweep in DIR (resumable: "
-                    "running the command again continues), then write DIR/refinement.md, "
+        description="Deflate every (energy convention, gamma, mesh size, seed) as one sweep in "
+                    "DIR (resumable: running the command again continues), the same shell on "
+                    "every mesh: by default a shape imperfection of 0.1 times each shell's "
+                    "thickness in the degrees up to its classical buckling band, no jiggle "
+                    "(spherical shells with a smooth jiggle: --shape-imperfection-d 0); then "
+                    "write DIR/refinement.md, "
                     "DIR/refinement.csv and DIR/refinement.png: per convention, gamma and mesh "
                     "the located primary threshold, loss of axisymmetry, wrinkle onset, W near "
                     "dV/V = 0.645 and E/kappa at dV/V = 0.1, 0.3, 0.5 (mean and spread over "
@@ -33,19 +36,24 @@ def register(sub) -> None:
                         help="comma-separated seeds or ranges a-b (default 0: one seed); "
                              + allowed("seed"))
     add_number(parser, "--smooth-jiggle", "smooth_jiggle",
-               "rms amplitude (units of R) of the smooth imperfection (default: the part of "
-               "the paper's jiggle, 0.028 R at its 3594 vertices, in the degrees 2..L: 0.028 "
+               "rms amplitude (units of R) of the smooth imperfection, the jiggle of every "
+               "step (default: 0 on imperfect shells; on spherical ones the part of the "
+               "paper's jiggle, 0.028 R at its 3594 vertices, in the degrees 2..L: 0.028 "
                "sqrt(((L+1)^2 - 4)/3594) R, 0.0098 R for L = 20)")
     add_number(parser, "--smooth-degree", "smooth_degree",
                "highest degree L of the smooth imperfection (default 20); every mesh must "
                "resolve it with 4 mean edges per wavelength 2 pi R/L")
+    add_number(parser, "--shape-imperfection-d", "shape_imperfection_d",
+               "rms of the shells' shape imperfection in units of each shell's effective "
+               "thickness (default 0.1; 0: spherical shells): the stress-free shape moved "
+               "radially by a seeded field, the same shell on every mesh of a seed")
     add_number(parser, "--shape-imperfection", "shape_imperfection",
-               "shells with a shape imperfection of this rms (units of R; default none: "
-               "spherical shells): the stress-free shape moved radially by a seeded field, the "
-               "same shell on every mesh of a seed (give --smooth-jiggle 0 for no jiggle)")
-    add_number(parser, "--shape-degree", "shape_degree",
-               "highest degree L of the shape imperfection (default 20); every mesh must "
-               "resolve it")
+               "the same rms in units of R, for every gamma (instead of --shape-imperfection-d)")
+    parser.add_argument("--shape-degree", metavar="L",
+                        help="highest degree of the shape imperfection: an integer in [2, 30], "
+                             "or 'critical' (the default): per shell ceil(l_c) + 1 with l_c "
+                             "(l_c + 1) = sqrt(gamma_eff), the classical buckling band (8 at "
+                             "gamma_eff = 2333, 14 at 29160); every mesh must resolve it")
     add_number(parser, "--until", "until_deflated", "last target dV/V (default 0.95, the "
                "paper's protocol to self-contact; W is read near dV/V = 0.645)")
     add_number(parser, "--workers", "workers", "local worker processes (default: cores)")
@@ -82,7 +90,7 @@ def _cmd(args) -> int:
 def _options(args) -> dict:
     """The study's options, every one checked (ValueError naming it) before any work."""
     from ..params import ENERGY_CONVENTIONS, bending_factor
-    from ..protocol.imperfection import DEFAULT_DEGREE, check_shape
+    from ..protocol.imperfection import DEFAULT_DEGREE
 
     gammas = values("--gamma", args.gamma, float, "gamma")
     conventions = values("--energy-convention", args.energy_convention, str)
@@ -103,24 +111,18 @@ def _options(args) -> dict:
     g = max(gammas)
     check_mesh("--vertices", typed(args, "--vertices"), g, n, gamma_effective=g_eff if g_eff != g else None,
                mesh=f"--vertices {n}")
-    degree = DEFAULT_DEGREE if args.smooth_degree is None else args.smooth_degree
-    option = "--smooth-degree" if args.smooth_degree is not None else "--vertices"
-    check_smooth_degree(option, typed(args, option, degree if option != "--vertices" else n),
-                        degree, n, mesh=f"--vertices {n}")
-    if args.shape_degree is not None and args.shape_imperfection is None:
-        raise ValueError(f"--shape-degree {typed(args, '--shape-degree')}: allowed: only with "
-                         "--shape-imperfection (the highest degree of the shape imperfection)")
-    if args.shape_imperfection is not None:
-        degree = DEFAULT_DEGREE if args.shape_degree is None else args.shape_degree
-        option = "--shape-degree" if args.shape_degree is not None else "--shape-imperfection"
-        check_smooth_degree(option, typed(args, option), degree, n, mesh=f"--vertices {n}",
-                            kind="shape")
-        for seed in seeds:
-            try:
-                check_shape(args.shape_imperfection, degree, seed)
-            except ValueError as exc:
-                raise ValueError(f"--shape-imperfection {typed(args, '--shape-imperfection')}: "
-                                 f"{exc}") from None
+    shape = _shape(args, gammas, conventions, seeds, n)
+    spherical = not next(iter(shape.values()))
+    jiggle = args.smooth_jiggle != 0 and (args.smooth_jiggle is not None or spherical)
+    if args.smooth_degree is not None and not jiggle:
+        raise ValueError(f"--smooth-degree {typed(args, '--smooth-degree')}: allowed: only with "
+                         "a smooth jiggle (--smooth-jiggle > 0; on imperfect shells the "
+                         "default is none)")
+    if jiggle:
+        degree = DEFAULT_DEGREE if args.smooth_degree is None else args.smooth_degree
+        option = "--smooth-degree" if args.smooth_degree is not None else "--vertices"
+        check_smooth_degree(option, typed(args, option, degree if option != "--vertices" else n),
+                            degree, n, mesh=f"--vertices {n}")
     until = 0.95 if args.until is None else args.until
     if until < 0.019:
         raise ValueError(f"--until {typed(args, '--until', until)}: allowed: at least the volume "
@@ -128,8 +130,64 @@ def _options(args) -> dict:
     return {"gammas": gammas, "conventions": conventions, "vertices": vertices,
             "seeds": seeds, "smooth_jiggle": args.smooth_jiggle,
             "smooth_degree": args.smooth_degree,
-            "shape_imperfection": args.shape_imperfection, "shape_degree": args.shape_degree,
-            "until": until}
+            **shape, "until": until}
+
+
+def _shape(args, gammas, conventions, seeds, n: int) -> dict:
+    """The shape imperfection's options of the study (refinement.study_spec), checked for
+    every shell: its amplitude in units of R in range, its degree resolved by the coarsest
+    mesh, its curvature positive."""
+    from ..params import bending_factor, d_over_R
+    from ..protocol.deflate import MAX_SHAPE_DEGREE
+    from ..protocol.imperfection import CRITICAL, check_shape, critical_shape_degree
+    from ..studies.refinement import SHAPE_IN_D
+
+    if args.shape_imperfection is not None and args.shape_imperfection_d is not None:
+        raise ValueError(f"--shape-imperfection-d {typed(args, '--shape-imperfection-d')}: give "
+                         "either --shape-imperfection (units of R) or --shape-imperfection-d "
+                         "(units of d)")
+    if args.shape_imperfection is not None:
+        flag, amplitude = "--shape-imperfection", args.shape_imperfection
+    else:
+        flag = "--shape-imperfection-d"
+        amplitude = SHAPE_IN_D if args.shape_imperfection_d is None else args.shape_imperfection_d
+    degree = CRITICAL if args.shape_degree is None else args.shape_degree.strip()
+    if degree != CRITICAL:
+        try:
+            degree = int(degree)
+        except ValueError:
+            degree = None
+        if degree is None or not 2 <= degree <= MAX_SHAPE_DEGREE:
+            raise ValueError(f"--shape-degree {args.shape_degree}: allowed: an integer in [2, "
+                             f"{MAX_SHAPE_DEGREE}] or {CRITICAL!r} (the shape's curvature is "
+                             "checked on a grid that resolves 30)")
+    if amplitude == 0:
+        if args.shape_degree is not None:
+            raise ValueError(f"--shape-degree {args.shape_degree}: allowed: only with a shape "
+                             f"imperfection ({flag} is 0: spherical shells)")
+        return {flag[2:].replace("-", "_"): 0.0}
+    for gamma in gammas:
+        for convention in conventions:
+            g_eff = gamma / bending_factor(convention)
+            a = amplitude if flag == "--shape-imperfection" else amplitude * float(
+                d_over_R(g_eff, 1.0 / 3.0))
+            L = critical_shape_degree(g_eff) if degree == CRITICAL else degree
+            where = f"gamma {gamma:g} ({convention})"
+            if RANGES["shape_imperfection"].problem(a):
+                raise ValueError(f"{flag} {typed(args, flag, amplitude)}: gives an rms amplitude "
+                                 f"of {a:.4g} R at {where}; {allowed('shape_imperfection')}")
+            option = "--shape-degree" if args.shape_degree is not None else flag
+            check_smooth_degree(option, typed(args, option, amplitude if option == flag else
+                                              args.shape_degree),
+                                L, n, mesh=f"--vertices {n} ({where}: degree {L})",
+                                kind="shape")
+            for seed in seeds:
+                try:
+                    check_shape(a, L, seed)
+                except ValueError as exc:
+                    raise ValueError(f"{flag} {typed(args, flag, amplitude)}: at {where}: "
+                                     f"{exc}") from None
+    return {flag[2:].replace("-", "_"): amplitude, "shape_degree": degree}
 
 
 def _out(out) -> None:

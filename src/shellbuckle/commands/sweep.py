@@ -14,13 +14,13 @@ PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
 KINDS = {"gamma": float, "nu": float, "seeds": int, "vertices": int, "icosphere": int,
          "dv": float, "until": float, "jiggle": float, "temperature": float, "bending": str,
          "method": str, "energy_convention": str, "smooth_jiggle": float, "smooth_degree": int,
-         "shape_imperfection": float, "shape_degree": int}
+         "shape_imperfection": float, "shape_imperfection_d": float, "shape_degree": str}
 #: The range (a name of ``_checks.RANGES``) of each numeric axis.
 SPANS = {"gamma": "gamma", "nu": "nu", "seeds": "seed", "vertices": "vertices",
          "icosphere": "icosphere", "dv": "dv", "until": "until_deflated", "jiggle": "jiggle",
          "temperature": "temperature", "smooth_jiggle": "smooth_jiggle",
          "smooth_degree": "smooth_degree", "shape_imperfection": "shape_imperfection",
-         "shape_degree": "shape_degree"}
+         "shape_imperfection_d": "shape_imperfection_d", "shape_degree": "shape_degree"}
 #: Runs of one sweep at most.
 MAX_RUNS = 10_000
 
@@ -63,10 +63,16 @@ def register(sub) -> None:
                              "shells' shape imperfection, their stress-free shape moved "
                              "radially by a seeded field, the same shell on every mesh of a "
                              "seed; " + allowed("shape_imperfection"))
+    parser.add_argument("--shape-imperfection-d", metavar="B,..",
+                        help="comma-separated list of: the same rms amplitudes in units of each "
+                             "shell's effective thickness (0.1 is about half the classical "
+                             "buckling pressure at every gamma), instead of "
+                             "--shape-imperfection; " + allowed("shape_imperfection_d"))
     parser.add_argument("--shape-degree", metavar="L,..",
                         help="comma-separated list of: highest degrees L of the shape "
-                             "imperfection (default 20); every mesh must resolve it; "
-                             + allowed("shape_degree"))
+                             "imperfection (default 20), or 'critical': per shell ceil(l_c) + 1 "
+                             "with l_c (l_c + 1) = sqrt(gamma_eff), the classical buckling band; "
+                             "every mesh must resolve it; " + allowed("shape_degree"))
     parser.add_argument("--workers", metavar="N", help="local worker processes (default: "
                         "cores); " + allowed("workers"))
     parser.add_argument("--scheduler", metavar="ADDR",
@@ -87,7 +93,10 @@ def _cmd(args) -> int:
     from ..sweep import SweepSpec, check_scheduler, run_sweep
 
     given = {name: values(_flag(name), getattr(args, name), kind, SPANS.get(name, ""))
-             for name, kind in KINDS.items() if getattr(args, name) is not None}
+             for name, kind in KINDS.items()
+             if getattr(args, name) is not None and name != "shape_degree"}
+    if args.shape_degree is not None:
+        given["shape_degree"] = _shape_degrees(args.shape_degree)
     if args.no_c0_cycle:
         given["c0_cycle"] = False
     workers = _workers(args)
@@ -110,6 +119,22 @@ def _cmd(args) -> int:
     for _, row in failed.iterrows():
         print(f"  failed: {row['name']}: {row['message']}", file=sys.stderr)
     return 1 if len(failed) else 0
+
+
+def _shape_degrees(text: str) -> list:
+    """``--shape-degree``: integers (or ranges a-b) in range, or ``critical``."""
+    from ..protocol.imperfection import CRITICAL
+
+    out = []
+    for item in (part.strip() for part in text.split(",")):
+        if item == CRITICAL:
+            out.append(CRITICAL)
+        elif item:
+            try:
+                out += values("--shape-degree", item, int, "shape_degree")
+            except ValueError as exc:
+                raise ValueError(f"{exc} or {CRITICAL!r}") from None
+    return out
 
 
 def _workers(args) -> int | None:
@@ -149,7 +174,7 @@ def _check(spec, given: dict, config, gamma_text=None) -> None:
     for name, span in SPANS.items():
         where = _flag(name) if name in given or not config else f"--config {config}: {name}"
         for value in getattr(spec, name, None) or ():
-            if value is not None:
+            if value is not None and not isinstance(value, str):  # "critical": per shell
                 check_value(where, span, value)
     if len(spec) > MAX_RUNS:
         raise ValueError(f"--out: the sweep has {len(spec)} runs; allowed: at most {MAX_RUNS}")
@@ -163,14 +188,19 @@ def _check(spec, given: dict, config, gamma_text=None) -> None:
     check_mesh("--gamma", gamma_text or f"{gamma:g}", gamma, n, gamma_effective=gamma / factor, mesh=mesh)
     from ..protocol.imperfection import DEFAULT_DEGREE
 
+    points = spec.points()
     for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
-        amplitudes, degrees = getattr(spec, amplitude), getattr(spec, f"{kind}_degree")
-        if all(a is None for a in amplitudes):
+        field = [p for p in points if p.get(amplitude)]  # 0: no field to resolve
+        if not field:
             continue
-        degree = max(DEFAULT_DEGREE if L is None else L for L in degrees)
-        if None not in degrees:
-            option, text = f"--{kind}-degree", degree
+        degree = max(DEFAULT_DEGREE if p[f"{kind}_degree"] is None else p[f"{kind}_degree"]
+                     for p in field)
+        if None not in getattr(spec, f"{kind}_degree"):
+            option = f"--{kind}-degree"
+            text = ",".join(map(str, getattr(spec, f"{kind}_degree")))
         else:
-            option = "--" + amplitude.replace("_", "-")
-            text = ",".join(f"{a:g}" for a in amplitudes if a is not None)
+            flag = amplitude + ("_d" if kind == "shape" and any(
+                b is not None for b in spec.shape_imperfection_d) else "")
+            option = "--" + flag.replace("_", "-")
+            text = ",".join(f"{a:g}" for a in getattr(spec, flag) if a is not None)
         check_smooth_degree(option, text, degree, n, mesh=mesh, kind=kind)

@@ -215,6 +215,30 @@ def smooth_jiggle(X, faces, directions, amplitude: float, degree: int,
 
 # ------------------------------------------------------------------ shape imperfection
 
+CRITICAL = "critical"
+"""The shape degree that covers a shell's classical buckling band:
+:func:`critical_shape_degree`."""
+
+
+def buckling_degree(gamma_effective: float) -> float:
+    """The degree ``l_c`` of the classical buckling mode of a sphere with FvK number
+    ``gamma_effective = A R^2 / kappa_H``: ``l_c (l_c + 1) = sqrt(gamma_effective)``. The
+    pressure at which degree ``l`` buckles is ``p_l = (2/R^3) (kappa_H lambda + A R^2/lambda)``,
+    ``lambda = l (l + 1)`` (the large-``l`` form of Zoelly's result; Hutchinson, J. Appl. Mech.
+    34, 49 (1967)), least at ``lambda = sqrt(gamma)`` where it is ``p_c = 4 sqrt(kappa_H A)/R^2``
+    (:func:`shellbuckle.theory.classical_threshold`). 6.47 at gamma = 2333, 12.6 at 29160."""
+    lam = math.sqrt(float(gamma_effective))
+    return (math.sqrt(1.0 + 4.0 * lam) - 1.0) / 2.0
+
+
+def critical_shape_degree(gamma_effective: float) -> int:
+    """The highest degree of a shape imperfection that contains the classical buckling band:
+    ``ceil(l_c) + 1`` (:func:`buckling_degree`), at least :data:`LOWEST_DEGREE`. 8 at gamma =
+    2333, 12 at 15163, 14 at 29160 (under the ``paper`` convention, gamma_eff = 4 gamma: 11,
+    17, 19)."""
+    return max(LOWEST_DEGREE, math.ceil(buckling_degree(gamma_effective)) + 1)
+
+
 SHAPE_STREAM = 0x5348415045
 """The random stream of the shape imperfection is ``default_rng([seed, SHAPE_STREAM])``
 (the steps' jiggles draw from ``[seed, step]``, ``[seed, step, attempt]``)."""

@@ -26,7 +26,8 @@ Columns (:data:`COLUMNS`):
   exists, else from ``sweep.json``): ``gamma``, ``nu``, ``seed``, ``mesh`` (``random`` or
   ``icosphere``), ``n_vertices``, ``icosphere`` (level), ``dv``, ``until``, ``c0_cycle``,
   ``jiggle``, ``temperature``, ``smooth_jiggle``, ``smooth_degree`` (the smooth imperfection),
-  ``shape_imperfection``, ``shape_degree`` (the shell's own; empty where unset),
+  ``shape_imperfection``, ``shape_degree`` (the shell's own, in units of R; empty where
+  unset), ``shape_imperfection_d`` (the amplitude in units of d the sweep gave, if it did),
   ``bending``, ``method``, ``energy_convention``;
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
@@ -82,7 +83,8 @@ W_RANGE = (0.53, 0.76)
 
 PARAMETER_COLUMNS = ("gamma", "nu", "seed", "mesh", "n_vertices", "icosphere", "dv", "until",
                      "c0_cycle", "jiggle", "temperature", "smooth_jiggle", "smooth_degree",
-                     "shape_imperfection", "shape_degree", "bending", "method",
+                     "shape_imperfection", "shape_imperfection_d", "shape_degree", "bending",
+                     "method",
                      "energy_convention")
 RESULT_COLUMNS = ("status", "message", "stop_reason", "steps", "final_dV_over_V",
                   "pressure_drop_dV_over_V", "primary_dV_over_V", "primary_source",

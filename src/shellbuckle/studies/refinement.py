@@ -63,9 +63,15 @@ THRESHOLDS = {"primary_dV_over_V": "primary buckling dV/V",
 #: Where the sphere branch ends when followed without any jiggle (the located primary
 #: buckling's ``old_branch``, :func:`shellbuckle.locate._old_branch`): the discrete shell's own
 #: instability, to compare with the thin-shell classical threshold
-#: (:func:`shellbuckle.theory.classical_threshold`).
+#: (:func:`shellbuckle.theory.classical_threshold`). For a shell with a shape imperfection it
+#: is the end of the imperfect shell's own branch (:data:`IMPERFECT_BRANCH_END`).
 BRANCH_END = {"primary_branch_end_dV_over_V": "sphere branch's end without jiggle dV/V"}
+IMPERFECT_BRANCH_END = "imperfect shell's branch end without jiggle dV/V"
 CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
+#: Default shape imperfection of the study, in units of each shell's effective thickness: it
+#: lowers the buckling pressure to about half the classical one (docs/mesh-convergence.md) and
+#: sets where the shell dents, the same material point on every mesh.
+SHAPE_IN_D = 0.1
 
 
 def energy_column(at: float) -> str:
@@ -135,15 +141,27 @@ def branch_end(point: dict | None) -> float:
     return 0.5 * (float(branch["end_lo"]) + float(branch["end_hi"]))
 
 
-def _imperfection(protocol: dict) -> str:
-    if protocol.get("smooth_jiggle") is not None:
+def _imperfection(protocol: dict, params: dict | None = None) -> str:
+    """A run's imperfections in words: the shape (in units of R, and of the effective
+    thickness where ``params`` give one) and the jiggle."""
+    if protocol.get("smooth_jiggle") == 0:
+        kick = "no jiggle"
+    elif protocol.get("smooth_jiggle") is not None:
         kick = f"smooth {protocol['smooth_jiggle']:.3g} R, L <= {protocol.get('smooth_degree')}"
     elif protocol.get("jiggle") is not None:
         kick = f"jiggle {protocol['jiggle']:g} edge"
     else:
         kick = f"jiggle T = {protocol.get('temperature'):g}"
     if protocol.get("shape_imperfection"):
-        kick = (f"shape {protocol['shape_imperfection']:.3g} R, L <= "
+        in_d = ""
+        try:
+            from ..params import ShellParameters
+
+            d = ShellParameters.from_dict(params).d_over_R_effective if params else math.nan
+            in_d = f" ({protocol['shape_imperfection'] / d:.3g} d)" if d > 0 else ""
+        except (ValueError, TypeError, KeyError):
+            pass  # no thickness (nu >= 1/2): units of R only
+        kick = (f"shape {protocol['shape_imperfection']:.3g} R{in_d}, L <= "
                 f"{protocol.get('shape_degree')}; {kick}")
     return kick
 
@@ -164,7 +182,7 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     imperfections, energies, ends = [], {a: [] for a in energy_at_values}, []
     for path in runs["path"]:
         meta = RunStore.open(path).meta
-        imperfections.append(_imperfection(meta.get("protocol", {})))
+        imperfections.append(_imperfection(meta.get("protocol", {}), meta.get("params")))
         ends.append(branch_end(_primary_point(path, tables[path], read_located(path))))
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
@@ -325,23 +343,39 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
 
 def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
                smooth_jiggle: float | None = None, smooth_degree: int | None = None,
-               shape_imperfection: float | None = None, shape_degree: int | None = None,
+               shape_imperfection: float | None = None,
+               shape_imperfection_d: float | None = None, shape_degree=None,
                until: float = 0.95):
     """The study's :class:`~shellbuckle.sweep.SweepSpec`: the paper's protocol (dv = 0.019,
-    the c0 cycle, Newton) with the smooth imperfection of rms ``smooth_jiggle`` R (default
-    :func:`paper_equivalent_amplitude`) up to degree ``smooth_degree`` (default
-    :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`), on shells with the shape
-    imperfection ``shape_imperfection`` R up to ``shape_degree`` if given (spherical
-    otherwise)."""
-    from ..protocol.imperfection import DEFAULT_DEGREE
+    the c0 cycle, Newton) on shells with a shape imperfection, by default
+    :data:`SHAPE_IN_D` of each shell's effective thickness up to its
+    :func:`~shellbuckle.protocol.imperfection.critical_shape_degree` (``shape_imperfection``
+    gives it in units of R instead, ``shape_degree`` a degree; an amplitude 0 means spherical
+    shells), with the smooth imperfection (jiggle) of rms ``smooth_jiggle`` R up to degree
+    ``smooth_degree`` (default :data:`~shellbuckle.protocol.imperfection.DEFAULT_DEGREE`);
+    the default jiggle is none on imperfect shells (the shape breaks the symmetry, the same
+    way on every mesh) and :func:`paper_equivalent_amplitude` on spherical ones."""
+    from ..protocol.imperfection import CRITICAL, DEFAULT_DEGREE
     from ..sweep import SweepSpec
 
+    if shape_imperfection is not None and shape_imperfection_d is not None:
+        raise ValueError("give either shape_imperfection (units of R) or shape_imperfection_d "
+                         "(units of d), not both")
+    if shape_imperfection is None and shape_imperfection_d is None:
+        shape_imperfection_d = SHAPE_IN_D
+    if shape_imperfection == 0 or shape_imperfection_d == 0:
+        shape = {}  # spherical shells (the runs of a study without shape imperfection)
+    else:
+        shape = {"shape_degree": CRITICAL if shape_degree is None else shape_degree}
+        if shape_imperfection is not None:
+            shape["shape_imperfection"] = shape_imperfection
+        else:
+            shape["shape_imperfection_d"] = shape_imperfection_d
     degree = DEFAULT_DEGREE if smooth_degree is None else smooth_degree
     if smooth_jiggle is None:
-        smooth_jiggle = round(paper_equivalent_amplitude(degree), 5)
-    shape = {} if shape_imperfection is None else {
-        "shape_imperfection": shape_imperfection,
-        "shape_degree": DEFAULT_DEGREE if shape_degree is None else shape_degree}
+        smooth_jiggle = 0.0 if shape else round(paper_equivalent_amplitude(degree), 5)
+    if smooth_jiggle == 0 and smooth_degree is None:
+        degree = None  # no jiggle: no degree (nor one in the run names)
     return SweepSpec(gamma=list(gammas), energy_convention=list(conventions),
                      vertices=list(vertices), seeds=list(seeds), until=until,
                      smooth_jiggle=smooth_jiggle, smooth_degree=degree, **shape)
@@ -349,7 +383,8 @@ def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=
 
 def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
               smooth_jiggle: float | None = None, smooth_degree: int | None = None,
-              shape_imperfection: float | None = None, shape_degree: int | None = None,
+              shape_imperfection: float | None = None,
+              shape_imperfection_d: float | None = None, shape_degree=None,
               until: float = 0.95, workers: int | None = None, scheduler=None,
               progress: bool = True, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
@@ -359,7 +394,8 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
 
     spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
                       smooth_degree=smooth_degree, shape_imperfection=shape_imperfection,
-                      shape_degree=shape_degree, until=until)
+                      shape_imperfection_d=shape_imperfection_d, shape_degree=shape_degree,
+                      until=until)
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
     folders = [Path(out) / p["name"] for p in spec.points()]
     return report(out, [f for f in folders if f.exists()], energy_at_values=energy_at_values)
@@ -421,8 +457,8 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                                                              else "") for n in sizes]
         lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
                   f"Classical threshold of the perfect sphere (thin-shell theory, to compare "
-                  f"with the sphere branch's end): dV/V = "
-                  f"{_classical(convention, gamma, nu):.4g}.", "",
+                  f"with the {'imperfect shell' if imperfection.startswith('shape') else 'sphere'}"
+                  f" branch's end): dV/V = {_classical(convention, gamma, nu):.4g}.", "",
                   "| quantity | " + " | ".join(heads) + " | h -> 0 | extrapolation | "
                   "error of the paper's mesh |",
                   "|---" * (len(sizes) + 4) + "|"]
@@ -432,7 +468,10 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
             cells = [_cell(rows.loc[n, "mean"], rows.loc[n, "std"], rows.loc[n, "n_seeds"])
                      for n in sizes]
             value = first["extrapolated"]
-            lines.append(f"| {first['label']} | " + " | ".join(cells) + " | "
+            label = first["label"]
+            if quantity in BRANCH_END and imperfection.startswith("shape"):
+                label = IMPERFECT_BRANCH_END
+            lines.append(f"| {label} | " + " | ".join(cells) + " | "
                          + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
                          + f"{first['method']} | {_error(first)} |")
         lines.append("")
