@@ -137,9 +137,14 @@ CASES = [
     (["deflate", "--from", "{run}", "--shape-imperfection", "0.01", "--out", "{tmp}/c"],
      "--shape-imperfection", "0.01"),
     (["deflate", "--mesh", os.path.join(os.path.dirname(__file__), "fixtures", "evolver",
-                                        "dented.fe"),
+                                        "sphere_perturbed.fe"),
       "--shape-imperfection", "0.001", "--shape-degree", "3", "--out", "{tmp}/r"],
      "--shape-imperfection", "0.001"),
+    # a spontaneous curvature per vertex (h_zero a vertex attribute): a run from a file has a
+    # uniform one, and would drop it
+    (["deflate", "--mesh", os.path.join(os.path.dirname(__file__), "fixtures", "evolver",
+                                        "dented.fe"), "--out", "{tmp}/r"],
+     "--mesh", "varies from vertex to vertex"),
     (["refine", "--shape-imperfection-d", "0", "--shape-degree", "8", "--out", "{tmp}/r"],
      "--shape-degree", "8"),
     (["refine", "--shape-imperfection-d", "3", "--out", "{tmp}/r"], "--shape-imperfection-d",

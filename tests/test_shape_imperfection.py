@@ -206,6 +206,16 @@ def test_an_imperfect_run_resumes_bit_for_bit_and_exports_its_own_rest_state(tmp
     bend = fields.bending.value(X0)
     assert bend == pytest.approx(full.table["E_bend"].iloc[0], rel=1e-12)
     assert fields.c0_vertices is not None and np.ptp(fields.c0_vertices) > 0.01
+    # its .fe export carries the c0 profile as h_zero per vertex: the same profile, which a
+    # run from that file (uniform c0 only) refuses rather than drop
+    from shellbuckle.export import export_step
+    from shellbuckle.mesh.evolver_io import read_evolver
+    from shellbuckle.run import shell_from_file
+
+    fe = export_step(full, 0, tmp_path / "start.fe")
+    np.testing.assert_allclose(2.0 * read_evolver(fe).h_zero, fields.c0_vertices, rtol=1e-12)
+    with pytest.raises(ValueError, match="h_zero that varies from vertex to vertex"):
+        shell_from_file(fe)
 
 
 def test_a_shape_that_inverts_the_curvature_somewhere_is_refused_whatever_the_mesh():

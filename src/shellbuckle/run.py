@@ -615,7 +615,8 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
 
     A Surface Evolver datafile or dump (``.fe``, ``.dmp``) brings its own moduli: the returned
     dict may hold ``A`` (``linear_elastic`` modulus), ``nu`` (``poisson_ratio``, if uniform),
-    ``kappa`` (``star_perp_sq_mean_curvature`` modulus / 2), ``c0`` (2 ``h_zero``),
+    ``kappa`` (``star_perp_sq_mean_curvature`` modulus / 2), ``c0`` (2 ``h_zero``; an
+    ``h_zero`` that varies from vertex to vertex is refused),
     ``form_factors`` (the rest metrics) and ``bending = "evolver"`` when the file bends with
     ``star_perp_sq_mean_curvature`` (so that a run keeps the file's discretization). An energy
     quantity of another method is refused by name: the run could not keep the file's model.
@@ -654,8 +655,16 @@ def shell_from_file(path) -> tuple[Mesh, dict]:
     if bending:
         found["kappa"] = float(bending[0].modulus) / 2.0
         found["bending"] = "evolver"
-        if evf.h_zero is not None and np.ndim(evf.h_zero) == 0:
-            found["c0"] = 2.0 * float(evf.h_zero)
+        if evf.h_zero is not None:
+            h_zero = np.asarray(evf.h_zero, dtype=float)
+            if np.ptp(h_zero) != 0:  # e.g. the export of a run with a shape imperfection
+                raise ValueError(
+                    f"mesh file {str(path)!r} has an h_zero that varies from vertex to vertex "
+                    f"(from {h_zero.min():.6g} to {h_zero.max():.6g}); allowed: one h_zero for "
+                    "the whole shell (a run from a file has a uniform spontaneous curvature; "
+                    "continue the run itself with --from, or give the shape as "
+                    "--shape-imperfection)")
+            found["c0"] = 2.0 * float(h_zero.ravel()[0])
     return evf.mesh, found
 
 

@@ -181,7 +181,10 @@ def _shell(args, seed: int, options: dict):
 
     if args.mesh is not None:
         input_file("--mesh", args.mesh)
-        mesh, from_file = shell_from_file(args.mesh)
+        try:
+            mesh, from_file = shell_from_file(args.mesh)
+        except ValueError as exc:  # what the file holds, named with the option
+            raise ValueError(f"--mesh {args.mesh}: {exc}") from None
         if args.E is not None:
             params = params_from_args(args)
         else:
