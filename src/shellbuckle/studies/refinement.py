@@ -374,8 +374,9 @@ def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=
     degree = DEFAULT_DEGREE if smooth_degree is None else smooth_degree
     if smooth_jiggle is None:
         smooth_jiggle = 0.0 if shape else round(paper_equivalent_amplitude(degree), 5)
-    if smooth_jiggle == 0 and smooth_degree is None:
-        degree = None  # no jiggle: no degree (nor one in the run names)
+    if smooth_jiggle == 0 and smooth_degree is None and shape:
+        degree = None  # no jiggle: no degree (nor one in the run names; spherical shells keep
+        # theirs, the names of the studies made before the shape imperfection)
     return SweepSpec(gamma=list(gammas), energy_convention=list(conventions),
                      vertices=list(vertices), seeds=list(seeds), until=until,
                      smooth_jiggle=smooth_jiggle, smooth_degree=degree, **shape)
