@@ -2,6 +2,7 @@
 sphere, the same surface on every mesh (protocol.imperfection, "shape imperfection")."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -310,3 +311,24 @@ def test_a_continued_imperfect_shell_keeps_its_seed_and_the_api_refuses_before_a
     assert not (tmp_path / "ff").exists()
     with pytest.raises(ValueError, match="shape_degree"):
         Protocol.paper(until=0.1, shape_imperfection=1e-4, shape_degree=31)
+
+
+@pytest.mark.parametrize("gamma", [271.0, 2333.0, 15163.0, 29160.0, 4 * 29160.0])
+def test_the_critical_degree_holds_the_classical_buckling_band(gamma):
+    # the pressure at which degree l buckles, p_l = (2/R)(kappa lambda/R^2 + A/lambda),
+    # lambda = l (l + 1), is least at lambda = sqrt(gamma) where it is the classical p_c of
+    # the theory module; the critical shape degree lies above the integer degree that buckles
+    from shellbuckle import theory
+    from shellbuckle.protocol.imperfection import buckling_degree, critical_shape_degree
+
+    params = ShellParameters.from_gamma(gamma, nu=1 / 3)
+    kappa, A, R = params.kappa, params.A, params.R
+    lc = buckling_degree(gamma)
+    lam = lc * (lc + 1)
+    p_c = theory.classical_threshold(params).pressure
+    assert 2 / R * (kappa * lam / R ** 2 + A / lam) == pytest.approx(p_c, rel=1e-12)
+    l = np.arange(2, 80)
+    p = 2 / R * (kappa * l * (l + 1) / R ** 2 + A / (l * (l + 1)))
+    first = int(l[np.argmin(p)])
+    assert math.floor(lc) <= first <= math.ceil(lc)
+    assert critical_shape_degree(gamma) == math.ceil(lc) + 1 > first
