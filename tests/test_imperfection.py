@@ -382,3 +382,15 @@ def test_the_step_relaxes_a_jiggled_start_when_its_protocol_says_so(monkeypatch,
     assert record["converged"]
     assert (seen[0].get("smooth_start") is False) == relaxed
     assert all("smooth_start" not in kwargs for kwargs in seen[1:])  # the c0 cycle
+
+
+def test_no_jiggle_asks_no_mesh_to_resolve_a_degree(tmp_path):
+    # --smooth-jiggle 0 is no field: a 600-vertex mesh (which resolves L <= 10) runs with
+    # the default degree 20
+    from shellbuckle.cli import main
+
+    assert main(["deflate", "--gamma", "271", "--vertices", "600", "--smooth-jiggle", "0",
+                 "--until", "0.019", "--threads", "1", "--no-plot", "--no-locate", "--quiet",
+                 "--out", str(tmp_path / "r")]) == 0
+    protocol = json.loads((tmp_path / "r" / "run.json").read_text())["protocol"]
+    assert protocol["smooth_jiggle"] == 0.0

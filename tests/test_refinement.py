@@ -217,8 +217,12 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
      "--vertices 300,600"),  # the smooth jiggle's degree 20
     (["--gamma", "271", "--vertices", "300,600", "--smooth-degree", "6"],
      "--smooth-degree 6"),  # no jiggle on imperfect shells: no degree
+    (["--gamma", "271", "--vertices", "300,600", "--shape-degree", "8",
+      "--shape-imperfection-d", "0.02"], "--shape-degree 8"),  # 300 vertices resolve L <= 7
     (["--gamma", "271", "--vertices", "300,600", "--shape-degree", "12"],
-     "--shape-degree 12"),  # 300 vertices resolve L <= 7
+     "--shape-imperfection-d 0.1 (the default)"),  # its curvature inverts at L = 12
+    (["--gamma", "2e5", "--energy-convention", "paper", "--vertices", "40000,80000"],
+     "--shape-degree critical (the default)"),  # gives L = 31
     (["--gamma", "2333", "--shape-imperfection-d", "2"], "--shape-imperfection-d 2"),
     (["--shape-degree", "critic"], "--shape-degree critic"),
     (["--shape-imperfection", "0.001", "--shape-imperfection-d", "0.1"],

@@ -258,9 +258,61 @@ def test_a_sweep_names_its_imperfect_shells_and_old_sweeps_keep_their_descriptio
     assert "shape_imperfection" not in SweepSpec(vertices=[600]).to_dict()
     study = study_spec([2333], ["helfrich"], [600, 1000], shape_imperfection=0.002)
     assert {p["shape_imperfection"] for p in study.points()} == {0.002}
-    assert {p["shape_degree"] for p in study.points()} == {20}
+    assert {p["shape_degree"] for p in study.points()} == {8}  # critical at gamma 2333
     with pytest.raises(ValueError, match="shape_degree"):
         SweepSpec(shape_degree=[8])
+
+
+def test_amplitudes_in_units_of_the_thickness_are_converted_per_shell_and_round_trip():
+    from shellbuckle.params import d_over_R
+    from shellbuckle.store.catalogue import _parameters
+    from shellbuckle.sweep import SweepSpec
+
+    spec = SweepSpec(gamma=[2333, 29160], energy_convention=["helfrich", "paper"],
+                     vertices=[3594], shape_imperfection_d=[0.1], smooth_jiggle=[0.0],
+                     shape_degree=["critical", 8])
+    points = spec.points()
+    # per shell: 0.1 of the effective thickness (gamma_eff = 4 gamma under paper), the
+    # critical degree and 8 (at gamma 2333 under helfrich they coincide: one run)
+    assert len(points) == 7
+    for p in points:
+        g_eff = p["gamma"] * (4 if p["energy_convention"] == "paper" else 1)
+        assert p["shape_imperfection"] == pytest.approx(0.1 * d_over_R(g_eff, 1 / 3),
+                                                        rel=1e-12)
+        assert p["shape_imperfection_d"] == 0.1
+        assert f"_sid0.1_Ls{p['shape_degree']}" in p["name"]
+    assert {p["shape_degree"] for p in points if p["gamma"] == 29160} == {8, 14, 19}
+    # through sweep.json and back: the same grid
+    again = SweepSpec.from_dict(json.loads(json.dumps(spec.to_dict())))
+    assert again == spec and again.points() == points
+    assert _parameters(points[0], None)["shape_imperfection_d"] == 0.1
+    # a sweep without these axes keeps its description and names
+    plain = SweepSpec(vertices=[3594], shape_imperfection=[0.003], shape_degree=[8])
+    assert "shape_imperfection_d" not in plain.to_dict()
+    assert [p["name"] for p in plain.points()] == ["g2333_nu0.333_v3594_s0_si0.003_Ls8"]
+    assert "shape_imperfection_d" not in plain.points()[0]
+    with pytest.raises(ValueError, match="gives L = 31"):  # critical above the checked grid
+        SweepSpec(gamma=[2e5], energy_convention=["paper"], shape_imperfection_d=[0.05],
+                  shape_degree=["critical"])
+    with pytest.raises(ValueError, match="not both"):
+        SweepSpec(shape_imperfection=[0.001], shape_imperfection_d=[0.1])
+
+
+def test_deflate_counts_amplitudes_in_the_effective_thickness(tmp_path):
+    from shellbuckle.cli import main
+    from shellbuckle.params import d_over_R
+    from shellbuckle.store.run import RunStore
+
+    for convention, factor in (("helfrich", 1), ("paper", 4)):
+        out = tmp_path / convention
+        assert main(["deflate", "--gamma", "271", "--vertices", "600", "--energy-convention",
+                     convention, "--shape-imperfection-d", "0.05", "--shape-degree", "4",
+                     "--smooth-jiggle-d", "0.02", "--smooth-degree", "6", "--until", "0.019",
+                     "--no-plot", "--no-locate", "--quiet", "--out", str(out)]) == 0
+        protocol = RunStore.open(out).meta["protocol"]
+        d = d_over_R(271 * factor, 1 / 3)
+        assert protocol["shape_imperfection"] == pytest.approx(0.05 * d, rel=1e-12)
+        assert protocol["smooth_jiggle"] == pytest.approx(0.02 * d, rel=1e-12)
 
 
 def _dent_axis(directions, X):
@@ -331,4 +383,4 @@ def test_the_critical_degree_holds_the_classical_buckling_band(gamma):
     p = 2 / R * (kappa * l * (l + 1) / R ** 2 + A / (l * (l + 1)))
     first = int(l[np.argmin(p)])
     assert math.floor(lc) <= first <= math.ceil(lc)
-    assert critical_shape_degree(gamma) == math.ceil(lc) + 1 > first
+    assert first < critical_shape_degree(gamma) <= first + 2

@@ -333,23 +333,29 @@ class SweepSpec:
         for convention, gamma, nu in itertools.product(self.energy_convention, self.gamma,
                                                        self.nu):
             for a, L, b in self.shapes(convention, gamma, nu):
+                where = f"gamma = {gamma:g} ({convention})"
                 if b is not None and not 0.0 <= a <= MAX_SMOOTH_JIGGLE:
-                    raise ValueError(f"shape_imperfection_d = {b!r}: gives an rms amplitude of "
-                                     f"{a:.4g} R at gamma = {gamma:g} ({convention}); allowed: "
-                                     f"at most {MAX_SMOOTH_JIGGLE:g} R")
+                    raise ValueError(f"shape_imperfection_d = {b:g}: gives an rms amplitude of "
+                                     f"{a:.4g} R at {where}; allowed: at most "
+                                     f"{MAX_SMOOTH_JIGGLE:g} R")
+                if L is not None and L > MAX_SHAPE_DEGREE:  # "critical" of a very thin shell
+                    raise ValueError(f"shape_degree = {CRITICAL}: gives L = {L} at {where}; "
+                                     f"allowed: at most {MAX_SHAPE_DEGREE} (the grid of the "
+                                     "curvature check resolves 30)")
                 for seed in self.seeds if a else ():
                     try:
                         check_shape(a, DEFAULT_DEGREE if L is None else L, seed)
                     except ValueError as exc:
                         name, value = ("shape_imperfection", a) if b is None else \
                             ("shape_imperfection_d", b)
-                        raise ValueError(f"{name} = {value!r}: {exc}") from None
+                        raise ValueError(f"{name} = {value:g}: at {where}: {exc}") from None
 
     def shapes(self, convention: str, gamma: float, nu: float) -> list[tuple]:
         """The shells of the grid at one (convention, gamma, nu): ``(a, L, b)`` with the
         amplitude ``a`` in units of R, the degree ``L`` (``None``: the default) and the
-        amplitude ``b`` in units of d it came from (``None`` if given in R);
-        ``(None, None, None)`` is a spherical shell."""
+        amplitude ``b`` in units of d it came from (``None`` if given in R), each shell once
+        (``critical`` and an integer can give the same degree); ``(None, None, None)`` is a
+        spherical shell."""
         from .params import bending_factor, d_over_R
         from .protocol.imperfection import CRITICAL, critical_shape_degree
 
@@ -366,7 +372,7 @@ class SweepSpec:
             d = float(d_over_R(gamma_effective, nu))
             out += [(b * d, degree(L), b) for b in self.shape_imperfection_d if b is not None
                     for L in self.shape_degree]
-        return out
+        return list(dict.fromkeys(out))
 
     # ------------------------------------------------------------------ input
 

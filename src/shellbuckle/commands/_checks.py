@@ -389,9 +389,11 @@ def degree_resolved(n_vertices: int) -> int:
 
 
 def check_smooth_degree(option: str, text, degree: int, n_vertices: int,
-                        mesh: str = "the mesh", kind: str = "smooth") -> None:
+                        mesh: str = "the mesh", kind: str = "smooth",
+                        degree_text: str | None = None) -> None:
     """``ValueError`` when a mesh of ``n_vertices`` cannot resolve the ``kind`` (``smooth`` or
-    ``shape``) imperfection of highest degree ``degree`` (:func:`degree_resolved`)."""
+    ``shape``) imperfection of highest degree ``degree`` (:func:`degree_resolved`);
+    ``degree_text`` says what the default degree is where it is not a number."""
     from ..protocol.imperfection import EDGES_PER_WAVELENGTH
 
     best = degree_resolved(n_vertices)
@@ -400,7 +402,7 @@ def check_smooth_degree(option: str, text, degree: int, n_vertices: int,
     wavelength = 2.0 * math.pi / degree
     flag = f"--{kind}-degree"
     default = "" if option == flag else \
-        f" (the default {flag} {degree}; give a lower one or more vertices)"
+        f" (the default {flag} {degree_text or degree}; give a lower one or more vertices)"
     raise ValueError(
         f"{option} {_typed(text, degree)}: the mesh cannot resolve the {kind} imperfection of "
         f"degree L = {degree}{default}: its shortest wavelength 2 pi R/L = {wavelength:.3g} R "
@@ -512,3 +514,14 @@ def run_folder(option: str, path):
         if str(path) in message:
             message = message.replace(str(path), "").lstrip(" :")
         raise ValueError(f"{option} {path}: {message}") from None
+
+
+def as_option(message: str, names: dict) -> str:
+    """A refusal of the Python API (``name = value: reason``, ``name [values] reason``) named
+    with the command-line option and its value as typed: ``names`` maps a field name to
+    ``(flag, text)``. Other messages are returned as they are."""
+    for name, (flag, text) in names.items():
+        match = re.match(rf"^{re.escape(name)}(?: = \S+?| \[[^\]]*\])?:? ", message)
+        if match:
+            return f"{flag} {text}: {message[match.end():]}"
+    return message

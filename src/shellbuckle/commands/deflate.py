@@ -241,7 +241,8 @@ def _check_smooth(args, params, n: int, mesh: str, options: dict) -> None:
             value = options[in_d] * d
             if RANGES[amplitude].problem(value):
                 raise ValueError(f"{flag_d} {typed(args, flag_d)}: gives an rms amplitude of "
-                                 f"{value:.4g} R at d/R = {d:.4g}; {allowed(amplitude)}")
+                                 f"{value:.4g} R at the effective d/R = {d:.4g}; "
+                                 f"{allowed(amplitude)}")
             options[amplitude] = value
         if not options.get(amplitude):  # none, or 0: no field for the mesh to resolve
             continue

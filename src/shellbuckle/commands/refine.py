@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._checks import (RANGES, add_command, add_number, allowed, check_mesh,
+from ._checks import (add_command, add_number, allowed, as_option, check_mesh,
                       check_smooth_degree, check_value, output_folder, typed)
 from ._options import values
 
@@ -111,14 +111,12 @@ def _options(args) -> dict:
     g = max(gammas)
     check_mesh("--vertices", typed(args, "--vertices"), g, n, gamma_effective=g_eff if g_eff != g else None,
                mesh=f"--vertices {n}")
-    shape = _shape(args, gammas, conventions, seeds, n)
+    shape = _shape(args)
     spherical = not next(iter(shape.values()))
-    jiggle = args.smooth_jiggle != 0 and (args.smooth_jiggle is not None or spherical)
-    if args.smooth_degree is not None and not jiggle:
+    if args.smooth_degree is not None and not spherical and args.smooth_jiggle is None:
         raise ValueError(f"--smooth-degree {typed(args, '--smooth-degree')}: allowed: only with "
-                         "a smooth jiggle (--smooth-jiggle > 0; on imperfect shells the "
-                         "default is none)")
-    if jiggle:
+                         "--smooth-jiggle (imperfect shells have no jiggle by default)")
+    if args.smooth_jiggle != 0 and (args.smooth_jiggle is not None or spherical):
         degree = DEFAULT_DEGREE if args.smooth_degree is None else args.smooth_degree
         option = "--smooth-degree" if args.smooth_degree is not None else "--vertices"
         check_smooth_degree(option, typed(args, option, degree if option != "--vertices" else n),
@@ -127,19 +125,19 @@ def _options(args) -> dict:
     if until < 0.019:
         raise ValueError(f"--until {typed(args, '--until', until)}: allowed: at least the volume "
                          "step 0.019 and below 0.99")
-    return {"gammas": gammas, "conventions": conventions, "vertices": vertices,
-            "seeds": seeds, "smooth_jiggle": args.smooth_jiggle,
-            "smooth_degree": args.smooth_degree,
-            **shape, "until": until}
+    options = {"gammas": gammas, "conventions": conventions, "vertices": vertices,
+               "seeds": seeds, "smooth_jiggle": args.smooth_jiggle,
+               "smooth_degree": args.smooth_degree, **shape, "until": until}
+    _check_shells(args, options, n)
+    return options
 
 
-def _shape(args, gammas, conventions, seeds, n: int) -> dict:
-    """The shape imperfection's options of the study (refinement.study_spec), checked for
-    every shell: its amplitude in units of R in range, its degree resolved by the coarsest
-    mesh, its curvature positive."""
-    from ..params import bending_factor, d_over_R
+def _shape(args) -> dict:
+    """The shape imperfection's options of the study (refinement.study_spec): one amplitude
+    (units of d or of R), a degree an integer in range or ``critical``, none for spherical
+    shells."""
     from ..protocol.deflate import MAX_SHAPE_DEGREE
-    from ..protocol.imperfection import CRITICAL, check_shape, critical_shape_degree
+    from ..protocol.imperfection import CRITICAL
     from ..studies.refinement import SHAPE_IN_D
 
     if args.shape_imperfection is not None and args.shape_imperfection_d is not None:
@@ -166,28 +164,39 @@ def _shape(args, gammas, conventions, seeds, n: int) -> dict:
             raise ValueError(f"--shape-degree {args.shape_degree}: allowed: only with a shape "
                              f"imperfection ({flag} is 0: spherical shells)")
         return {flag[2:].replace("-", "_"): 0.0}
-    for gamma in gammas:
-        for convention in conventions:
-            g_eff = gamma / bending_factor(convention)
-            a = amplitude if flag == "--shape-imperfection" else amplitude * float(
-                d_over_R(g_eff, 1.0 / 3.0))
-            L = critical_shape_degree(g_eff) if degree == CRITICAL else degree
-            where = f"gamma {gamma:g} ({convention})"
-            if RANGES["shape_imperfection"].problem(a):
-                raise ValueError(f"{flag} {typed(args, flag, amplitude)}: gives an rms amplitude "
-                                 f"of {a:.4g} R at {where}; {allowed('shape_imperfection')}")
-            option = "--shape-degree" if args.shape_degree is not None else flag
-            check_smooth_degree(option, typed(args, option, amplitude if option == flag else
-                                              args.shape_degree),
-                                L, n, mesh=f"--vertices {n} ({where}: degree {L})",
-                                kind="shape")
-            for seed in seeds:
-                try:
-                    check_shape(a, L, seed)
-                except ValueError as exc:
-                    raise ValueError(f"{flag} {typed(args, flag, amplitude)}: at {where}: "
-                                     f"{exc}") from None
     return {flag[2:].replace("-", "_"): amplitude, "shape_degree": degree}
+
+
+def _check_shells(args, options: dict, n: int) -> None:
+    """The study's shells as its sweep makes them (refinement.study_spec, which checks each
+    shell's amplitude in units of R, degree and curvature; its refusals named with the option
+    as typed), and the coarsest mesh resolving every shell's shape degree."""
+    from ..studies.refinement import SHAPE_IN_D, study_spec
+
+    flags = {"shape_imperfection_d": "--shape-imperfection-d",
+             "shape_imperfection": "--shape-imperfection", "shape_degree": "--shape-degree"}
+    try:
+        spec = study_spec(**{k: v for k, v in options.items() if k != "vertices"},
+                          vertices=[n])
+    except ValueError as exc:
+        defaults = {"--shape-imperfection-d": f"{SHAPE_IN_D:g} (the default)",
+                    "--shape-degree": "critical (the default)"}
+        texts = {name: (flag, typed(args, flag, getattr(args, name))
+                        if getattr(args, name) is not None else defaults.get(flag))
+                 for name, flag in flags.items()}
+        raise ValueError(as_option(str(exc), texts)) from None
+    for point in spec.points():
+        L = point.get("shape_degree")
+        if not point.get("shape_imperfection") or L is None:
+            continue
+        where = f"gamma {point['gamma']:g} ({point['energy_convention']})"
+        if args.shape_degree is not None:
+            option, text, shown = "--shape-degree", args.shape_degree, None
+        else:
+            option, text = "--vertices", args.vertices
+            shown = f"critical, {L} at {where}"
+        check_smooth_degree(option, text, L, n, mesh=f"--vertices {n}", kind="shape",
+                            degree_text=shown)
 
 
 def _out(out) -> None:

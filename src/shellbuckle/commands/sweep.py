@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from ._checks import (RANGES, add_command, allowed, check_mesh, check_smooth_degree,
-                      check_value, input_file, output_folder)
+from ._checks import (RANGES, add_command, allowed, as_option, check_mesh,
+                      check_smooth_degree, check_value, input_file, output_folder)
 from ._options import add_protocol_options, add_shell_options, default_gamma, values
 
 #: The protocol axes of a sweep (SweepSpec fields), as comma-separated lists.
@@ -65,8 +65,8 @@ def register(sub) -> None:
                              "seed; " + allowed("shape_imperfection"))
     parser.add_argument("--shape-imperfection-d", metavar="B,..",
                         help="comma-separated list of: the same rms amplitudes in units of each "
-                             "shell's effective thickness (0.1 is about half the classical "
-                             "buckling pressure at every gamma), instead of "
+                             "shell's effective thickness, converted per gamma and "
+                             "convention, instead of "
                              "--shape-imperfection; " + allowed("shape_imperfection_d"))
     parser.add_argument("--shape-degree", metavar="L,..",
                         help="comma-separated list of: highest degrees L of the shape "
@@ -105,8 +105,16 @@ def _cmd(args) -> int:
     if args.config:
         input_file("--config", args.config)
     _out(args.out)
-    spec = (SweepSpec.from_toml(args.config, defaults=defaults, **given) if args.config
-            else SweepSpec.from_dict(defaults | given))
+    if args.shape_imperfection is not None and args.shape_imperfection_d is not None:
+        raise ValueError(f"--shape-imperfection-d {args.shape_imperfection_d}: give either "
+                         "--shape-imperfection (units of R) or --shape-imperfection-d (units of "
+                         "d)")
+    try:
+        spec = (SweepSpec.from_toml(args.config, defaults=defaults, **given) if args.config
+                else SweepSpec.from_dict(defaults | given))
+    except ValueError as exc:  # named with the option as typed where the value was typed
+        raise ValueError(as_option(str(exc), {name: (_flag(name), getattr(args, name))
+                                              for name in given if name in KINDS})) from None
     _check(spec, given, args.config, args.gamma)
     catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
                           progress=not args.quiet, analyze=not args.no_analysis,
