@@ -44,16 +44,12 @@ from shellbuckle.locate import StepFromStored  # noqa: E402
 from shellbuckle.protocol import deflate as protocol_mod  # noqa: E402
 from shellbuckle.run import Run  # noqa: E402
 from shellbuckle.solve.linesearch import max_displacement, mean_edge_length  # noqa: E402
+from shellbuckle.studies.refinement import material_dent_axis  # noqa: E402
 
 
 def dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """The unit vector to the dent in the material: the reference directions of the vertices
-    weighted by the squared depth of each below the median distance from the origin."""
-    radius = np.linalg.norm(X, axis=1)
-    w = np.maximum(np.median(radius) - radius, 0.0) ** 2
-    U = X0 / np.linalg.norm(X0, axis=1, keepdims=True)
-    c = (w[:, None] * U).sum(axis=0)
-    return c / np.linalg.norm(c)
+    """The unit vector to the dent in the material (the refinement study's measure)."""
+    return material_dent_axis(X0, X)
 
 
 def turn(a: np.ndarray, b: np.ndarray) -> float:

@@ -18,6 +18,7 @@ from shellbuckle import theory
 from shellbuckle.analysis.collect import collect_runs
 from shellbuckle.cli import main as cli_main
 from shellbuckle.locate import located
+from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run
 from shellbuckle.store.run import RunStore
@@ -177,23 +178,40 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
 
 def test_the_default_study_deflates_the_same_imperfect_shell_on_every_mesh(tmp_path):
     # the default: 0.1 effective thickness of shape imperfection up to the classical buckling
-    # band (gamma 271: l_c (l_c + 1) = sqrt(271), l_c = 3.59, L = 5), no jiggle; under
-    # ``paper`` the shell is that of gamma_eff = 4 gamma (d halved, L = 7)
+    # band (gamma 271: l_c (l_c + 1) = sqrt(271), l_c = 3.59, L = 5), no jiggle
     out = tmp_path / "study"
-    assert cli_main(["refine", "--gamma", "271", "--vertices", "300,600", "--until", "0.04",
-                     "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    assert cli_main(["refine", "--gamma", "271", "--energy-convention", "helfrich",
+                     "--vertices", "300,600", "--until", "0.171", "--workers", "1", "--quiet",
+                     "--out", str(out)]) == 0
     runs = collect_runs([out])
-    assert len(runs) == 4 and (runs["status"] == "finished").all()
+    assert len(runs) == 2 and (runs["status"] == "finished").all()
     for _, run in runs.iterrows():
-        meta = RunStore.open(run["path"]).meta
-        params, protocol = meta["params"], meta["protocol"]
-        g_eff = params["gamma"] * (4.0 if params["energy_convention"] == "paper" else 1.0)
+        protocol = RunStore.open(run["path"]).meta["protocol"]
         assert protocol["shape_imperfection"] == pytest.approx(
-            0.1 * math.sqrt(8.0 / g_eff), rel=1e-12)  # gamma = 8 (R/d)^2 at nu = 1/3
-        assert protocol["shape_degree"] == (7 if params["energy_convention"] == "paper" else 5)
-        assert protocol["smooth_jiggle"] == 0.0
+            0.1 * math.sqrt(8.0 / 271.0), rel=1e-12)  # gamma = 8 (R/d)^2 at nu = 1/3
+        assert protocol["shape_degree"] == 5 and protocol["smooth_jiggle"] == 0.0
     text = (out / refinement.MARKDOWN).read_text()
     assert "imperfect shell's branch end" in text and "(0.1 d)" in text and "no jiggle" in text
+    # both meshes dent (primary at dV/V = 0.14) at the same material point: within 3 degrees
+    # at dV/V = 0.171, where the 300-vertex mesh has a mean edge of 13 degrees
+    table = refinement.report(out, energy_at_values=(0.171,))
+    angle = table[table["quantity"] == refinement.angle_column(0.171)].set_index("n_vertices")
+    assert angle.loc[600, "mean"] == 0.0 and 0.0 < angle.loc[300, "mean"] < 3.0
+    assert (angle["method"] == "measured to the finest mesh").all()
+
+
+def test_the_dent_axis_is_a_material_direction():
+    # a sphere pushed in around the material direction n (rotated afterwards: blind to it)
+    X0 = icosphere(8).X
+    n = np.array([1.0, 2.0, -2.0]) / 3.0
+    U = X0 / np.linalg.norm(X0, axis=1, keepdims=True)
+    X = U * (1.0 - 0.3 * np.clip(U @ n - 0.8, 0.0, None))[:, None]
+    axis = refinement.material_dent_axis(X0, X)
+    np.testing.assert_allclose(axis, n, atol=0.02)
+    c, s_ = math.cos(0.7), math.sin(0.7)
+    rotation = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(refinement.material_dent_axis(X0, X @ rotation.T), axis,
+                               atol=1e-12)
 
 
 def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):

@@ -82,10 +82,20 @@ def energy_column(at: float) -> str:
     return f"E_over_kappa_at_{at:g}"
 
 
+def axis_column(at: float) -> str:
+    return f"dent_axis_at_{at:g}"
+
+
+def angle_column(at: float) -> str:
+    return f"dent_angle_at_{at:g}"
+
+
 def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
     """Column name -> label of every quantity of the table, in order."""
     return (THRESHOLDS | BRANCH_END
-            | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at})
+            | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at}
+            | {angle_column(a): f"dent axis to the finest mesh's at dV/V = {a:g} (degrees)"
+               for a in energy_at})
 
 
 def mean_edge(n_vertices) -> np.ndarray:
@@ -122,6 +132,36 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
     if not len(dv) or not dv[0] <= at <= dv[-1]:
         return math.nan
     return float(np.interp(at, dv, E))
+
+
+def material_dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """The unit vector to the dent in the material: the directions of the vertices in the
+    reference sphere ``X0`` weighted by the squared depth of each below the median distance
+    from the origin in ``X``. A material direction, so it compares across meshes of the same
+    sphere (and is blind to rigid rotations of ``X``'s frame that keep the origin)."""
+    radius = np.linalg.norm(X, axis=1)
+    w = np.maximum(np.median(radius) - radius, 0.0) ** 2
+    U = X0 / np.linalg.norm(X0, axis=1, keepdims=True)
+    c = (w[:, None] * U).sum(axis=0)
+    norm = float(np.linalg.norm(c))
+    return c / norm if norm > 0 else np.full(3, np.nan)
+
+
+def dent_axis_at(store, table: pd.DataFrame, at: float) -> tuple | None:
+    """:func:`material_dent_axis` at the stored step nearest to dV/V = ``at`` (within half a
+    step of the schedule; every mesh of a study has the same steps), where that step is
+    classified as dented (not ``sphere``); ``None`` otherwise."""
+    dv = table["dV_over_V"].to_numpy(dtype=float)
+    if len(dv) < 2:
+        return None
+    i = int(np.argmin(np.abs(dv - at)))
+    if abs(dv[i] - at) > 0.5 * float(np.max(np.diff(np.sort(dv)))):
+        return None
+    if "shape" in table.columns and str(table["shape"].iloc[i]) in ("sphere", "nan", "None"):
+        return None
+    k = int(table["step"].iloc[i])
+    axis = material_dent_axis(store.X0, store.positions(k))
+    return tuple(float(v) for v in axis) if np.isfinite(axis).all() else None
 
 
 def _primary_point(path, table, points: dict) -> dict | None:
@@ -174,8 +214,11 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """One row per finished run of ``paths`` (run or sweep folders): the columns of
     :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
     ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
-    was located before the branch was followed, or is no jump) and ``E_over_kappa_at_<a>``
-    for each ``a`` of ``energy_at_values``."""
+    was located before the branch was followed, or is no jump), ``E_over_kappa_at_<a>`` and
+    ``dent_axis_at_<a>`` (:func:`dent_axis_at`, a tuple or None) for each ``a`` of
+    ``energy_at_values``."""
+    import pandas as pd
+
     from ..analysis.collect import collect_runs
     from ..store.located import read_located
     from ..store.run import RunStore
@@ -184,17 +227,21 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     runs = collect_runs(paths, tables=tables)
     runs = runs[runs["status"] == "finished"].reset_index(drop=True)
     imperfections, energies, ends = [], {a: [] for a in energy_at_values}, []
+    axes = {a: [] for a in energy_at_values}
     for path in runs["path"]:
-        meta = RunStore.open(path).meta
+        store = RunStore.open(path)
+        meta = store.meta
         imperfections.append(_imperfection(meta.get("protocol", {}), meta.get("params")))
         ends.append(branch_end(_primary_point(path, tables[path], read_located(path))))
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
             energies[a].append(energy_at(tables[path], kappa, a))
+            axes[a].append(dent_axis_at(store, tables[path], a))
     runs["imperfection"] = imperfections
     runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
+        runs[axis_column(a)] = pd.Series(axes[a], index=runs.index, dtype=object)
     return runs
 
 
@@ -207,7 +254,9 @@ class Extrapolation:
     meshes), ``equal`` (the two finest give the same value), ``not converged`` (value NaN:
     three that are not monotone, or a fitted order outside [:data:`MIN_ORDER`,
     :data:`MAX_ORDER`]), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
-    ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one)."""
+    ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one),
+    ``to the finest`` (value NaN: an angle measured to the finest mesh, nothing to
+    extrapolate)."""
 
     value: float
     order: float
@@ -230,6 +279,8 @@ class Extrapolation:
             return "value on one mesh only"
         if self.method == "gap":
             return "not converged (no value on a finer mesh)"
+        if self.method == "to the finest":
+            return "measured to the finest mesh"
         return "not converged"
 
 
@@ -240,6 +291,8 @@ ONE_MESH = Extrapolation(math.nan, math.nan, math.nan, "one mesh")
 #: A finer mesh lacks the value that a coarser one has (the event did not happen there, or the
 #: run stopped before that dV/V): the sequence says nothing about the limit.
 GAP = Extrapolation(math.nan, math.nan, math.nan, "gap")
+#: An angle measured to the finest mesh's dent axis: zero there by definition.
+TO_FINEST = Extrapolation(math.nan, math.nan, math.nan, "to the finest")
 
 
 def _order(h, q) -> float | None:
@@ -313,6 +366,33 @@ def _spread(values: np.ndarray) -> tuple[float, float, int]:
     return float(values.mean()), std, len(values)
 
 
+def _with_angles(group: pd.DataFrame, energy_at_values) -> pd.DataFrame:
+    """``group`` with ``dent_angle_at_<a>``: per run, the angle in degrees between its dent
+    axis at dV/V = a and that of the finest mesh's run of the same seed (NaN where either has
+    none); the same shell dents at the same material point on every mesh."""
+    group = group.copy()
+    finest = group["n_vertices"].max()
+    for a in energy_at_values:
+        column = axis_column(a)
+        reference = {row["seed"]: row[column] for _, row in group.iterrows()
+                     if row["n_vertices"] == finest} if column in group else {}
+        angles = []
+        for _, row in group.iterrows():
+            mine = row[column] if column in group else None
+            theirs = reference.get(row["seed"])
+            if row["n_vertices"] == finest and isinstance(mine, tuple):
+                angles.append(0.0)  # the reference itself
+                continue
+            if mine is None or theirs is None or not isinstance(mine, tuple) \
+                    or not isinstance(theirs, tuple):
+                angles.append(math.nan)
+                continue
+            cos = float(np.clip(np.dot(mine, theirs), -1.0, 1.0))
+            angles.append(math.degrees(math.acos(cos)))
+        group[angle_column(a)] = angles
+    return group
+
+
 def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
     (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
@@ -326,10 +406,12 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
         return pd.DataFrame(rows, columns=list(COLUMNS))
     for key, group in runs.groupby(GROUP, sort=True):
         sizes = sorted(group["n_vertices"].astype(int).unique())
+        group = _with_angles(group, energy_at_values)
         for quantity, label in quantities(energy_at_values).items():
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
-            fit = richardson(mean_edge(sizes), [stats[n][0] for n in sizes])
+            fit = TO_FINEST if quantity.startswith("dent_angle_at_") else richardson(
+                mean_edge(sizes), [stats[n][0] for n in sizes])
             paper = stats.get(PAPER_VERTICES, (math.nan,))[0]
             error = paper - fit.value
             relative = error / abs(fit.value) if fit.value else math.nan
