@@ -361,6 +361,15 @@ def test_a_continued_imperfect_shell_keeps_its_seed_and_the_api_refuses_before_a
         deflate(mesh, params, out=tmp_path / "ff", schedule=[0.03], smooth_jiggle=0.0,
                 shape_imperfection=0.004, form_factors=np.ones((len(mesh.faces), 3)))
     assert not (tmp_path / "ff").exists()
+    # a mesh off its sphere (one vertex pushed in by 1 %) would be moved onto it: refused
+    from shellbuckle.mesh import Mesh
+
+    X = mesh.X.copy()
+    X[0] *= 0.99
+    with pytest.raises(ValueError, match="lie on a sphere"):
+        deflate(Mesh(X, mesh.faces), params, out=tmp_path / "off", schedule=[0.03],
+                smooth_jiggle=0.0, shape_imperfection=0.004, shape_degree=6)
+    assert not (tmp_path / "off").exists()
     with pytest.raises(ValueError, match="shape_degree"):
         Protocol.paper(until=0.1, shape_imperfection=1e-4, shape_degree=31)
 

@@ -123,6 +123,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
         if form_factors is not None and shape_imperfection:
             raise ValueError("a shape imperfection sets the rest state itself: give it or "
                              "form_factors (Surface Evolver's rest metrics), not both")
+        if shape_imperfection:
+            _check_on_sphere(mesh)
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
@@ -608,6 +610,27 @@ def _fold_verdict(k: int, record: dict) -> str:
         return (f"step {k} converged to a saddle point, not a minimum (inertia {inertia}: "
                 "negative eigenvalues of the constrained Hessian)")
     return f"step {k} converged to a minimum (inertia 0); the fold was left behind"
+
+
+ON_SPHERE_TOL = 1e-9
+"""Largest relative spread of the vertex radii about the fitted sphere of a mesh that a shape
+imperfection may start from: its material points are the vertices' directions on that sphere,
+so any other mesh would first be moved onto it."""
+
+
+def _check_on_sphere(mesh: Mesh) -> None:
+    """``ValueError`` unless the vertices of ``mesh`` lie on one sphere (:data:`ON_SPHERE_TOL`):
+    the reference of a shape imperfection."""
+    from .protocol.imperfection import reference_sphere
+
+    X = np.asarray(mesh.X, dtype=float)
+    centre, R = reference_sphere(X)
+    spread = float(np.abs(np.linalg.norm(X - centre, axis=1) - R).max()) / R
+    if not spread <= ON_SPHERE_TOL:
+        raise ValueError(f"a shape imperfection needs a mesh whose vertices lie on a sphere "
+                         f"(the shell's reference); this mesh's vertices lie up to "
+                         f"{spread:.3g} R off their fitted sphere (allowed: {ON_SPHERE_TOL:g} R): "
+                         "use a randomized or icosahedral sphere")
 
 
 def shell_from_file(path) -> tuple[Mesh, dict]:

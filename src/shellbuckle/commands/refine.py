@@ -23,7 +23,8 @@ def register(sub) -> None:
                     "the located primary threshold, loss of axisymmetry, wrinkle onset, W near "
                     "dV/V = 0.645 and E/kappa at dV/V = 0.1, 0.3, 0.5 (mean and spread over "
                     "seeds), each extrapolated to a zero mean edge h (Richardson), and the "
-                    "error of the paper's 3594-vertex mesh against it.")
+                    "error of the paper's 3594-vertex mesh against it; and the angle between "
+                    "each mesh's dent axis and the finest mesh's at those dV/V.")
     parser.add_argument("--gamma", metavar="G,..", default=",".join(f"{g:g}" for g in GAMMAS),
                         help="comma-separated gammas (default %(default)s); " + allowed("gamma"))
     parser.add_argument("--energy-convention", metavar="C,..", default=",".join(CONVENTIONS),
