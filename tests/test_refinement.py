@@ -258,3 +258,12 @@ def test_bad_input_exits_2_in_one_line_and_creates_nothing(tmp_path, capsys, arg
     err = capsys.readouterr().err
     assert named in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_a_dent_born_polygonal_is_said_so():
+    rows = [("primary_dV_over_V", 3594, 0.0428), ("axisymmetry_loss_dV_over_V", 3594, 0.0428),
+            ("primary_dV_over_V", 10000, 0.0429), ("axisymmetry_loss_dV_over_V", 10000, 0.2),
+            ("primary_dV_over_V", 40000, math.nan), ("axisymmetry_loss_dV_over_V", 40000,
+                                                     math.nan)]
+    group = pd.DataFrame(rows, columns=["quantity", "n_vertices", "mean"])
+    assert refinement._born_polygonal(group, [3594, 10000, 40000]) == [3594]

@@ -569,7 +569,24 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                          + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
                          + f"{first['method']} | {_error(first)} |")
         lines.append("")
+        born = _born_polygonal(group, sizes)
+        if born:
+            lines += [f"On N = {', '.join(map(str, born))} the loss of axisymmetry is the "
+                      "primary buckling itself: the dent is not axisymmetric from its birth "
+                      "(an imperfection with non-axisymmetric modes at the dent's scale shapes "
+                      "its rim).", ""]
     return "\n".join(lines)
+
+
+def _born_polygonal(group: pd.DataFrame, sizes) -> list[int]:
+    """The mesh sizes of a group whose loss of axisymmetry equals its primary buckling (every
+    seed's mean)."""
+    by = {q: rows.set_index("n_vertices")["mean"] for q, rows in group.groupby("quantity")}
+    primary, loss = by.get("primary_dV_over_V"), by.get("axisymmetry_loss_dV_over_V")
+    if primary is None or loss is None:
+        return []
+    return [int(n) for n in sizes if math.isfinite(primary.get(n, math.nan))
+            and primary.get(n) == loss.get(n)]
 
 
 def _classical(convention: str, gamma: float, nu: float) -> float:
