@@ -94,7 +94,7 @@ def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
     """Column name -> label of every quantity of the table, in order."""
     return (THRESHOLDS | BRANCH_END
             | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at}
-            | {angle_column(a): f"dent axis to the finest mesh's at dV/V = {a:g} (degrees)"
+            | {angle_column(a): f"dent axis to finest mesh, dV/V = {a:g} (deg)"
                for a in energy_at})
 
 
