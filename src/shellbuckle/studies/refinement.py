@@ -135,14 +135,16 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
 
 
 def material_dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """The unit vector to the dent in the material: the directions of the vertices in the
-    reference sphere ``X0`` weighted by the squared depth of each below the median distance
-    from the origin in ``X``. A material direction, so it compares across meshes of the same
-    sphere (and is blind to rigid rotations of ``X``'s frame that keep the origin)."""
+    """The unit vector to the dent in the material: the material points of the vertices
+    (:func:`~shellbuckle.protocol.imperfection.reference_directions` of the reference sphere
+    ``X0``) weighted by the squared depth of each below the median distance from the origin in
+    ``X``. A material direction, so it compares across meshes of the same sphere (and is blind
+    to rigid rotations of ``X``'s frame that keep the origin)."""
+    from ..protocol.imperfection import reference_directions
+
     radius = np.linalg.norm(X, axis=1)
     w = np.maximum(np.median(radius) - radius, 0.0) ** 2
-    U = X0 / np.linalg.norm(X0, axis=1, keepdims=True)
-    c = (w[:, None] * U).sum(axis=0)
+    c = (w[:, None] * reference_directions(X0)).sum(axis=0)
     norm = float(np.linalg.norm(c))
     return c / norm if norm > 0 else np.full(3, np.nan)
 
