@@ -23,7 +23,7 @@ from shellbuckle.params import ShellParameters
 from shellbuckle.run import Run
 from shellbuckle.store.run import RunStore
 from shellbuckle.studies import refinement
-from shellbuckle.studies.refinement import energy_at, mean_edge, richardson
+from shellbuckle.studies.refinement import energy_at, mean_edge, richardson, rim_amplitude_at
 
 
 @pytest.mark.parametrize("q0, c, p", [(0.25, 1.3, 2.0), (7.0, -0.4, 1.0), (-3.0, 2.0, 1.5),
@@ -96,6 +96,18 @@ def test_energy_at_a_stored_step_is_the_stored_value_and_linear_between():
     assert math.isnan(energy_at(table, kappa, 0.06))
 
 
+def test_rim_amplitude_at_is_interpolated_and_nan_without_a_rim_on_either_side():
+    table = pd.DataFrame({"dV_over_V": [0.038, 0.0, 0.057, 0.019, 0.076],
+                          "rim_amplitude": [0.08, math.nan, 0.06, math.nan, 0.07]})
+    assert rim_amplitude_at(table, 0.057) == 0.06  # a stored step: its value
+    assert rim_amplitude_at(table, 0.038) == 0.08  # though the step before has no rim
+    assert rim_amplitude_at(table, 0.0665) == pytest.approx(0.065, rel=1e-12)
+    assert rim_amplitude_at(table, 0.0475) == pytest.approx(0.07, rel=1e-12)
+    assert math.isnan(rim_amplitude_at(table, 0.03))  # between the sphere and the dent
+    assert math.isnan(rim_amplitude_at(table, 0.08))  # beyond the run
+    assert math.isnan(rim_amplitude_at(table.drop(columns="rim_amplitude"), 0.057))
+
+
 def test_default_amplitude_is_the_papers_jiggle_in_the_resolved_degrees():
     # white noise of std sigma at N vertices: sigma^2 M / N in M = (L+1)^2 - 4 harmonics
     assert refinement.paper_equivalent_amplitude(20) == pytest.approx(
@@ -153,6 +165,12 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
                 if dv.min() <= at <= dv.max() else math.nan
             np.testing.assert_allclose(rows.loc[refinement.energy_column(at), "mean"],
                                        expected, rtol=1e-12)
+            # the rim harmonic: the analysis's own, between the two steps around dV/V = at
+            a = t["rim_amplitude"].to_numpy(float)
+            k = np.searchsorted(dv, at)
+            if dv.min() <= at <= dv.max() and np.isfinite(a[[k - 1, k]]).all():
+                np.testing.assert_allclose(rows.loc[refinement.rim_column(at), "mean"],
+                                           np.interp(at, dv, a), rtol=1e-12)
         # the sphere branch's end is the one the location found by following it without jiggle
         point = located(run["path"])["primary_buckling"]
         end = rows.loc["primary_branch_end_dV_over_V", "mean"]

@@ -14,7 +14,10 @@ imperfection (:mod:`shellbuckle.protocol.imperfection`, the same field on every 
   wrinkled steps with dV/V in [0.53, 0.76], i.e. near 0.645) as
   :func:`shellbuckle.analysis.collect.collect_runs` gives them;
 - ``E/kappa`` at fixed dV/V (:data:`ENERGY_AT`), :func:`energy_at`: linear interpolation of the
-  stored total energy between the two stored steps around that dV/V;
+  stored total energy between the two stored steps around that dV/V; the rim's largest
+  harmonic at the same dV/V (:func:`rim_amplitude_at`), how far the dent is from
+  axisymmetric, for shells whose dent is born non-axisymmetric; the dent axis's angle to the
+  finest mesh's;
 
 each averaged over seeds (mean, sample standard deviation with ``n - 1``, NaN for one seed),
 and per quantity a value extrapolated to h -> 0 in the mean edge ``h = sqrt(8 pi / (sqrt(3)
@@ -90,10 +93,15 @@ def angle_column(at: float) -> str:
     return f"dent_angle_at_{at:g}"
 
 
+def rim_column(at: float) -> str:
+    return f"rim_amplitude_at_{at:g}"
+
+
 def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
     """Column name -> label of every quantity of the table, in order."""
     return (THRESHOLDS | BRANCH_END
             | {energy_column(a): f"E/kappa at dV/V = {a:g}" for a in energy_at}
+            | {rim_column(a): f"rim harmonic / rim radius at dV/V = {a:g}" for a in energy_at}
             | {angle_column(a): f"dent axis to finest mesh, dV/V = {a:g} (deg)"
                for a in energy_at})
 
@@ -125,13 +133,37 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
     stored steps around it (the stored value at a stored step); NaN outside the dV/V the run
     reached. Across a snap-through between the two steps the value is on the chord, not on
     either branch (the table's step is the resolution)."""
+    return _interpolate(table, "E_total", at) / kappa
+
+
+def rim_amplitude_at(table: pd.DataFrame, at: float) -> float:
+    """The rim's largest harmonic (modes m >= 2, relative to the rim's radius; the table's
+    ``rim_amplitude``, :mod:`shellbuckle.analysis.wrinkles`) at dV/V = ``at``, interpolated as
+    :func:`energy_at`; NaN where either step has no single dent's rim (the sphere, several
+    dents) or outside the run. It measures how far the dent is from axisymmetric: for a shell
+    with a shape imperfection, born non-axisymmetric, a converged number where the loss of
+    axisymmetry is no threshold."""
+    return _interpolate(table, "rim_amplitude", at)
+
+
+def _interpolate(table: pd.DataFrame, column: str, at: float) -> float:
+    """``column`` at dV/V = ``at``: the stored value at a stored step, else linear in dV/V
+    between the two stored steps around it (NaN if either is NaN, outside the run, or where
+    the run's table has no such column: a run not analysed)."""
+    if column not in table:
+        return math.nan
     dv = table["dV_over_V"].to_numpy(dtype=float)
-    E = table["E_total"].to_numpy(dtype=float) / kappa
+    q = table[column].to_numpy(dtype=float)
     order = np.argsort(dv, kind="stable")
-    dv, E = dv[order], E[order]
+    dv, q = dv[order], q[order]
     if not len(dv) or not dv[0] <= at <= dv[-1]:
         return math.nan
-    return float(np.interp(at, dv, E))
+    exact = np.flatnonzero(dv == at)
+    if len(exact):
+        return float(q[exact[0]])
+    i = int(np.searchsorted(dv, at))  # dv[i - 1] < at < dv[i]
+    t = (at - dv[i - 1]) / (dv[i] - dv[i - 1])
+    return float((1.0 - t) * q[i - 1] + t * q[i])
 
 
 def material_dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -216,7 +248,8 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """One row per finished run of ``paths`` (run or sweep folders): the columns of
     :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
     ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
-    was located before the branch was followed, or is no jump), ``E_over_kappa_at_<a>`` and
+    was located before the branch was followed, or is no jump), ``E_over_kappa_at_<a>``,
+    ``rim_amplitude_at_<a>`` (:func:`rim_amplitude_at`) and
     ``dent_axis_at_<a>`` (:func:`dent_axis_at`, a tuple or None) for each ``a`` of
     ``energy_at_values``."""
     import pandas as pd
@@ -230,6 +263,7 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     runs = runs[runs["status"] == "finished"].reset_index(drop=True)
     imperfections, energies, ends = [], {a: [] for a in energy_at_values}, []
     axes = {a: [] for a in energy_at_values}
+    rims = {a: [] for a in energy_at_values}
     for path in runs["path"]:
         store = RunStore.open(path)
         meta = store.meta
@@ -238,11 +272,13 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
             energies[a].append(energy_at(tables[path], kappa, a))
+            rims[a].append(rim_amplitude_at(tables[path], a))
             axes[a].append(dent_axis_at(store, tables[path], a))
     runs["imperfection"] = imperfections
     runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
+        runs[rim_column(a)] = rims[a]
         runs[axis_column(a)] = pd.Series(axes[a], index=runs.index, dtype=object)
     return runs
 
@@ -537,9 +573,10 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
              "sqrt(8 pi/(sqrt(3)(N - 2))) R. Extrapolated: Richardson in h (the order fitted "
              "from the three finest meshes when they are monotone, else the order 2 assumed "
              "from two meshes, else not converged). Error of the paper's mesh: "
-             f"q(N = {PAPER_VERTICES}) - q(h -> 0), and relative to |q(h -> 0)|. E/kappa is "
-             "interpolated linearly in dV/V between the two stored steps around the given "
-             "dV/V."), ""]
+             f"q(N = {PAPER_VERTICES}) - q(h -> 0), and relative to |q(h -> 0)|. E/kappa and "
+             "the rim harmonic (the largest harmonic m >= 2 of the dent's rim over the rim's "
+             "radius: 0 for an axisymmetric dent) are interpolated linearly in dV/V between "
+             "the two stored steps around the given dV/V."), ""]
     if n_runs is not None:
         lines += [f"Finished runs: {n_runs}.", ""]
     if table.empty:
