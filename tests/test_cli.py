@@ -187,3 +187,21 @@ def test_deflate_from_refuses_a_new_shell(small_run, tmp_path, capsys, flag, val
                  "--out", str(tmp_path / "x")]) == 2
     assert f"{flag} cannot be combined with --from" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_deflation_without_figure_or_location_does_not_load_the_table_libraries(tmp_path):
+    # what a short run pays before its first step and after its last: the run is made and
+    # reported from its records, without pandas, matplotlib or the locator
+    import subprocess
+    import sys
+
+    code = ("import sys; from shellbuckle.cli import main; "
+            "code = main(['deflate', '--vertices', '200', '--gamma', '100', '--until', '0.019', "
+            "'--no-plot', '--no-locate', '--quiet', '--threads', '1', "
+            f"'--out', {str(tmp_path / 'r')!r}]); "
+            "print(sorted(m for m in ('pandas', 'matplotlib', 'shellbuckle.locate') "
+            "if m in sys.modules)); sys.exit(code)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=300)
+    assert "steps: 1, dV/V = 0.0190" in out.stdout
+    assert out.stdout.strip().splitlines()[-1] == "[]"

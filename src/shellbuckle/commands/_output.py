@@ -10,7 +10,8 @@ def report_run(run, *, plot: bool = False) -> int:
     run's protocol control) the step's gamma and c0, otherwise its pressure; the located
     events (:mod:`shellbuckle.locate`) if any. With ``plot``,
     write the run figure (``deflation.png`` in the run folder) and name it. Returns 0."""
-    last = run.table.iloc[-1]
+    k = run.store.last_step  # its record, not the table: pandas is not needed to say it
+    last = {"step": k, **run.store.record(k)}
     print(f"run folder: {run.path}")
     print(f"status: {run.status} ({run.store.meta.get('message')})")
     if run.protocol.control in ("gamma", "c0"):
@@ -20,9 +21,9 @@ def report_run(run, *, plot: bool = False) -> int:
     else:
         print(f"steps: {int(last['step'])}, dV/V = {last['dV_over_V']:.4f}, "
               f"E/kappa = {last['E_over_kappa']:.6g}, pressure = {last['pressure']:.6g}")
-    from ..locate import located
+    from ..store.located import read_located
 
-    points = located(run)
+    points = read_located(run.path)
     if points:
         print_located(run, points)
     if plot:

@@ -45,7 +45,7 @@ def add_locate_options(parser) -> None:
 
 def locate_arguments(args) -> dict:
     """The ``locate``/``locate_tol`` arguments of :func:`shellbuckle.run.deflate`."""
-    from ..locate import DEFAULT_TOL
+    from ..store.located import LOCATE_TOL as DEFAULT_TOL  # the locator's, without its imports
 
     if args.no_locate and args.locate_tol is not None:
         raise ValueError(f"--locate-tol {args.locate_tol:g}: cannot be combined with "
