@@ -332,3 +332,20 @@ def stored_step(run, k: int, option: str = "--step") -> int:
         return run.step(k)
     except ValueError as exc:
         raise ValueError(f"{option} {k}: {exc}") from None
+
+
+def shape_degrees(text: str) -> list:
+    """``--shape-degree``: comma-separated integers (or ranges a-b) in range, or ``critical``
+    (the sweep's list; the refinement study takes one)."""
+    from ..protocol.imperfection import CRITICAL
+
+    out = []
+    for item in (part.strip() for part in text.split(",")):
+        if item == CRITICAL:
+            out.append(CRITICAL)
+        elif item:
+            try:
+                out += values("--shape-degree", item, int, "shape_degree")
+            except ValueError as exc:
+                raise ValueError(f"{exc} or {CRITICAL!r}") from None
+    return out

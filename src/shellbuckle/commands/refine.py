@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ._checks import (add_command, add_number, allowed, as_option, check_mesh,
                       check_smooth_degree, check_value, output_folder, typed)
-from ._options import values
+from ._options import shape_degrees, values
 
 
 def register(sub) -> None:
@@ -150,16 +150,11 @@ def _shape(args) -> dict:
     else:
         flag = "--shape-imperfection-d"
         amplitude = SHAPE_IN_D if args.shape_imperfection_d is None else args.shape_imperfection_d
-    degree = CRITICAL if args.shape_degree is None else args.shape_degree.strip()
-    if degree != CRITICAL:
-        try:
-            degree = int(degree)
-        except ValueError:
-            degree = None
-        if degree is None or not 2 <= degree <= MAX_SHAPE_DEGREE:
-            raise ValueError(f"--shape-degree {args.shape_degree}: allowed: an integer in [2, "
-                             f"{MAX_SHAPE_DEGREE}] or {CRITICAL!r} (the shape's curvature is "
-                             "checked on a grid that resolves 30)")
+    degrees = [CRITICAL] if args.shape_degree is None else shape_degrees(args.shape_degree)
+    if len(degrees) != 1:
+        raise ValueError(f"--shape-degree {args.shape_degree}: allowed: one integer in [2, "
+                         f"{MAX_SHAPE_DEGREE}] or {CRITICAL!r}")
+    degree = degrees[0]
     if amplitude == 0:
         if args.shape_degree is not None:
             raise ValueError(f"--shape-degree {args.shape_degree}: allowed: only with a shape "

@@ -6,7 +6,8 @@ import sys
 
 from ._checks import (RANGES, add_command, allowed, as_option, check_mesh,
                       check_smooth_degree, check_value, input_file, output_folder)
-from ._options import add_protocol_options, add_shell_options, default_gamma, values
+from ._options import (add_protocol_options, add_shell_options, default_gamma, shape_degrees,
+                       values)
 
 #: The protocol axes of a sweep (SweepSpec fields), as comma-separated lists.
 PROTOCOL = ("seed", "dv", "until", "temperature", "jiggle", "bending", "method")
@@ -96,7 +97,7 @@ def _cmd(args) -> int:
              for name, kind in KINDS.items()
              if getattr(args, name) is not None and name != "shape_degree"}
     if args.shape_degree is not None:
-        given["shape_degree"] = _shape_degrees(args.shape_degree)
+        given["shape_degree"] = shape_degrees(args.shape_degree)
     if args.no_c0_cycle:
         given["c0_cycle"] = False
     workers = _workers(args)
@@ -127,22 +128,6 @@ def _cmd(args) -> int:
     for _, row in failed.iterrows():
         print(f"  failed: {row['name']}: {row['message']}", file=sys.stderr)
     return 1 if len(failed) else 0
-
-
-def _shape_degrees(text: str) -> list:
-    """``--shape-degree``: integers (or ranges a-b) in range, or ``critical``."""
-    from ..protocol.imperfection import CRITICAL
-
-    out = []
-    for item in (part.strip() for part in text.split(",")):
-        if item == CRITICAL:
-            out.append(CRITICAL)
-        elif item:
-            try:
-                out += values("--shape-degree", item, int, "shape_degree")
-            except ValueError as exc:
-                raise ValueError(f"{exc} or {CRITICAL!r}") from None
-    return out
 
 
 def _workers(args) -> int | None:
