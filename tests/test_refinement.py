@@ -260,7 +260,7 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     (["--gamma", "2e5", "--energy-convention", "paper", "--vertices", "40000,80000"],
      "--shape-degree critical (the default)"),  # gives L = 31
     (["--gamma", "2333", "--shape-imperfection-d", "2"], "--shape-imperfection-d 2"),
-    (["--shape-degree", "critic"], "--shape-degree critic"),
+    (["--shape-degree", "critic"], "--shape-degree: 'critic'"),
     (["--shape-imperfection", "0.001", "--shape-imperfection-d", "0.1"],
      "--shape-imperfection-d 0.1"),
     (["--energy-convention", "helfrich,kirchhoff"], "kirchhoff"),
