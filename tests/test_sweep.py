@@ -385,3 +385,28 @@ def test_killed_sweep_resumes_without_recomputing_finished_work(reference_sweep,
         assert all(now[k] == v for k, v in files.items())
     pd.testing.assert_frame_equal(_results(catalogue), _results(ref_catalogue))
     assert (catalogue["status"] == "finished").sum() == len(valid)
+
+
+def test_a_local_cluster_serves_on_a_free_local_port_without_a_warning(recwarn):
+    # a second sweep on the same machine: Dask's default port 8787 is taken
+    import socket
+
+    from shellbuckle.sweep import _client
+
+    taken = socket.socket()
+    try:
+        taken.bind(("127.0.0.1", 8787))
+        taken.listen()
+    except OSError:
+        pass  # taken already, as the test needs
+    try:
+        client, owned = _client(None, 1)
+        try:
+            assert client.dashboard_link.startswith("http://127.0.0.1:")
+            assert ":8787/" not in client.dashboard_link
+        finally:
+            for thing in owned:
+                thing.close()
+    finally:
+        taken.close()
+    assert not [w for w in recwarn if "already in use" in str(w.message)]
