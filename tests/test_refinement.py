@@ -24,6 +24,8 @@ from shellbuckle.run import Run
 from shellbuckle.store.run import RunStore
 from shellbuckle.studies import refinement
 from shellbuckle.studies.refinement import energy_at, mean_edge, richardson, rim_amplitude_at
+from shellbuckle.studies.transfer import (check_same_shell, locate_directions,
+                                          material_interpolation, transfer)
 
 
 @pytest.mark.parametrize("q0, c, p", [(0.25, 1.3, 2.0), (7.0, -0.4, 1.0), (-3.0, 2.0, 1.5),
@@ -285,3 +287,49 @@ def test_a_dent_born_polygonal_is_said_so():
                                                      math.nan)]
     group = pd.DataFrame(rows, columns=["quantity", "n_vertices", "mean"])
     assert refinement._born_polygonal(group, [3594, 10000, 40000]) == [3594]
+
+
+def test_material_interpolation_samples_the_source_surface_along_each_ray():
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.protocol.imperfection import reference_directions
+
+    coarse, fine = random_sphere(300, seed=1), random_sphere(2000, seed=2)
+    # at its own material points a mesh gives back its own values
+    np.testing.assert_allclose(material_interpolation(coarse.X, coarse.faces, coarse.X,
+                                                      reference_directions(coarse.X)),
+                               coarse.X, rtol=0, atol=1e-12)
+    # at another mesh's: the point of the coarse faceted sphere on the ray in each direction
+    p = reference_directions(fine.X)
+    q = material_interpolation(coarse.X, coarse.faces, coarse.X, p)
+    r = np.linalg.norm(q, axis=1)
+    np.testing.assert_allclose(q / r[:, None], p, rtol=0, atol=1e-12)
+    R = np.linalg.norm(coarse.X, axis=1).mean()
+    assert r.max() <= R * (1 + 1e-12) and r.min() > 0.97 * R
+    _, weights = locate_directions(coarse.X, coarse.faces, p)
+    assert weights.min() >= -1e-9 and np.allclose(weights.sum(axis=1), 1.0, atol=1e-12)
+
+
+def test_a_state_of_the_sphere_branch_carried_to_another_mesh_is_its_own_minimum(study):
+    # before buckling the minimum at a volume is unique: carried either way and relaxed, a
+    # step is the other mesh's own step
+    runs = {int(r["n_vertices"]): r["path"] for _, r in collect_runs([study]).iterrows()}
+    for source, target in ((300, 600), (600, 300)):
+        moved = transfer(runs[source], 1, runs[target])
+        own = Run.open(runs[target]).store.record(1)
+        assert moved.result.success and moved.result.inertia == 0
+        assert moved.dV_over_V == pytest.approx(own["dV_over_V"], abs=1e-14)
+        assert moved.E_over_kappa == pytest.approx(own["E_over_kappa"], rel=1e-9)
+        assert moved.E_start_over_kappa > moved.E_over_kappa
+
+
+def test_only_the_same_shell_is_carried(study, tmp_path):
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.run import deflate
+
+    path = collect_runs([study])["path"].iloc[0]
+    other = deflate(random_sphere(200, seed=0), ShellParameters.from_gamma(300, nu=1 / 3),
+                    until=0.019, out=tmp_path / "other", locate=False, threads=1)
+    with pytest.raises(ValueError, match="not the same shell: their parameters differ in"):
+        check_same_shell(path, other)
+    with pytest.raises(ValueError, match="not the same shell"):
+        transfer(other, 1, path)
