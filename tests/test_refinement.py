@@ -99,15 +99,21 @@ def test_energy_at_a_stored_step_is_the_stored_value_and_linear_between():
 
 
 def test_rim_amplitude_at_is_interpolated_and_nan_without_a_rim_on_either_side():
-    table = pd.DataFrame({"dV_over_V": [0.038, 0.0, 0.057, 0.019, 0.076],
-                          "rim_amplitude": [0.08, math.nan, 0.06, math.nan, 0.07]})
+    table = pd.DataFrame({"dV_over_V": [0.038, 0.0, 0.057, 0.019, 0.076, 0.095],
+                          "rim_amplitude": [0.08, math.nan, 0.06, math.nan, 0.07, 0.2],
+                          "n_dimples": [1, 0, 1, 0, 1, 2]})
     assert rim_amplitude_at(table, 0.057) == 0.06  # a stored step: its value
     assert rim_amplitude_at(table, 0.038) == 0.08  # though the step before has no rim
     assert rim_amplitude_at(table, 0.0665) == pytest.approx(0.065, rel=1e-12)
     assert rim_amplitude_at(table, 0.0475) == pytest.approx(0.07, rel=1e-12)
     assert math.isnan(rim_amplitude_at(table, 0.03))  # between the sphere and the dent
-    assert math.isnan(rim_amplitude_at(table, 0.08))  # beyond the run
+    assert math.isnan(rim_amplitude_at(table, 0.08))  # toward two dents (the largest's rim)
+    assert math.isnan(rim_amplitude_at(table, 0.1))  # beyond the run
     assert math.isnan(rim_amplitude_at(table.drop(columns="rim_amplitude"), 0.057))
+    # a step without a volume fraction is left out, not every value lost
+    with_nan = pd.concat([table, pd.DataFrame({"dV_over_V": [math.nan], "rim_amplitude": [0.5],
+                                               "n_dimples": [1]})])
+    assert rim_amplitude_at(with_nan, 0.0665) == pytest.approx(0.065, rel=1e-12)
 
 
 def test_default_amplitude_is_the_papers_jiggle_in_the_resolved_degrees():
@@ -167,12 +173,6 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
                 if dv.min() <= at <= dv.max() else math.nan
             np.testing.assert_allclose(rows.loc[refinement.energy_column(at), "mean"],
                                        expected, rtol=1e-12)
-            # the rim harmonic: the analysis's own, between the two steps around dV/V = at
-            a = t["rim_amplitude"].to_numpy(float)
-            k = np.searchsorted(dv, at)
-            if dv.min() <= at <= dv.max() and np.isfinite(a[[k - 1, k]]).all():
-                np.testing.assert_allclose(rows.loc[refinement.rim_column(at), "mean"],
-                                           np.interp(at, dv, a), rtol=1e-12)
         # the sphere branch's end is the one the location found by following it without jiggle
         point = located(run["path"])["primary_buckling"]
         end = rows.loc["primary_branch_end_dV_over_V", "mean"]
@@ -181,6 +181,16 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
         else:
             assert point["old_branch"]["end_lo"] < end < point["old_branch"]["end_hi"]
             assert end > run["primary_dV_over_V"]
+    # the rim harmonic inside the dented range: the analysis's own, between the steps around
+    at = 0.25
+    rims = refinement.collect([study], (at,)).set_index("n_vertices")[refinement.rim_column(at)]
+    for _, run in runs.iterrows():
+        t = Run.open(run["path"]).table
+        assert (t.loc[t["dV_over_V"].between(0.2, 0.3), "n_dimples"] == 1).all()
+        expected = np.interp(at, t["dV_over_V"].to_numpy(float),
+                             t["rim_amplitude"].to_numpy(float))
+        assert np.isfinite(expected)
+        np.testing.assert_allclose(rims.loc[run["n_vertices"]], expected, rtol=1e-12)
     primary = table[table["quantity"] == "primary_dV_over_V"]
     assert np.isfinite(primary["mean"]).all()  # gamma = 271 buckles before dV/V = 0.3
     assert (primary["method"] == "order 2 assumed (2 meshes)").all()
@@ -333,3 +343,37 @@ def test_only_the_same_shell_is_carried(study, tmp_path):
         check_same_shell(path, other)
     with pytest.raises(ValueError, match="not the same shell"):
         transfer(other, 1, path)
+    # the same parameters, with a shape imperfection or another spontaneous curvature
+    params = ShellParameters.from_dict(Run.open(path).store.params)
+    imperfect = deflate(random_sphere(200, seed=0), params, until=0.019, locate=False,
+                        threads=1, shape_imperfection=0.01, shape_degree=4,
+                        out=tmp_path / "imperfect")
+    with pytest.raises(ValueError, match="their shape imperfections differ"):
+        check_same_shell(path, imperfect)
+    curved = deflate(random_sphere(200, seed=0), params, until=0.019, locate=False, threads=1,
+                     c0=1.5, out=tmp_path / "curved")
+    with pytest.raises(ValueError, match="spontaneous curvatures c0 differ"):
+        check_same_shell(curved, path)
+    check_same_shell(path, path)
+
+
+def test_rays_between_skinny_triangles_are_located_all_the_same():
+    # an unrelaxed random Delaunay sphere: some rays cross a triangle none of whose corners is
+    # among the nearest vertices of the ray
+    from scipy.spatial import cKDTree
+
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.protocol.imperfection import reference_directions
+    from shellbuckle.studies import transfer as module
+
+    coarse, fine = random_sphere(500, seed=3, iterations=0), random_sphere(20000, seed=4,
+                                                                           iterations=0)
+    U, p = reference_directions(coarse.X), reference_directions(fine.X)
+    indptr, face_ids = module._vertex_faces(np.asarray(coarse.faces), len(U))
+    _, near = cKDTree(U).query(p, k=module.NEAREST)
+    first = [np.unique(np.concatenate([face_ids[indptr[v]:indptr[v + 1]] for v in row]))
+             for row in near]
+    _, w = module._crossings(U, np.asarray(coarse.faces), p, first)
+    assert (w.min(axis=1) < -module.INSIDE_TOL).sum() > 0  # missed by the first search
+    q = material_interpolation(coarse.X, coarse.faces, coarse.X, p)
+    np.testing.assert_allclose(q / np.linalg.norm(q, axis=1)[:, None], p, rtol=0, atol=1e-12)

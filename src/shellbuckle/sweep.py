@@ -733,11 +733,14 @@ def _client(scheduler, workers):
         # (10 times as many as in a plain process). The local workers keep glibc's defaults.
         with dask.config.set({f"{NANNY_ENV}.{k}": None for k in WORKER_ENV_UNSET}):
             try:
-                # the scheduler's HTTP server (Dask always starts one) on a free local port:
-                # on its default port a second sweep on the machine warned that it was taken
+                # the scheduler's HTTP server (Dask always starts one) on a free local port,
+                # without the dashboard: on its default port a second sweep on the machine
+                # warned that it was taken
                 cluster = LocalCluster(n_workers=workers or default_workers(),
                                        threads_per_worker=1, processes=True,
-                                       dashboard_address="127.0.0.1:0", env=dict(WORKER_ENV))
+                                       dashboard_address="127.0.0.1:0",
+                                       scheduler_kwargs={"dashboard": False},
+                                       env=dict(WORKER_ENV))
             except RuntimeError as exc:
                 script = getattr(sys.modules.get("__main__"), "__file__", None)
                 if script is not None and script.startswith("<"):  # e.g. "<stdin>"

@@ -139,21 +139,30 @@ def energy_at(table: pd.DataFrame, kappa: float, at: float) -> float:
 def rim_amplitude_at(table: pd.DataFrame, at: float) -> float:
     """The rim's largest harmonic (modes m >= 2, relative to the rim's radius; the table's
     ``rim_amplitude``, :mod:`shellbuckle.analysis.wrinkles`) at dV/V = ``at``, interpolated as
-    :func:`energy_at`; NaN where either step has no single dent's rim (the sphere, several
-    dents) or outside the run. It measures how far the dent is from axisymmetric: for a shell
-    with a shape imperfection, born non-axisymmetric, a converged number where the loss of
-    axisymmetry is no threshold."""
-    return _interpolate(table, "rim_amplitude", at)
+    :func:`energy_at`; NaN where either step has not exactly one dent (``n_dimples``: the
+    sphere, or several dents, whose table keeps the largest one's rim) or outside the run. It
+    measures how far the dent is from axisymmetric: for a shell with a shape imperfection,
+    born non-axisymmetric, a converged number where the loss of axisymmetry is no
+    threshold."""
+    if "rim_amplitude" not in table or "n_dimples" not in table:
+        return math.nan
+    # a step with several dents keeps its largest dent's rim: not the one dent's harmonic
+    one_dent = table["n_dimples"].to_numpy(dtype=float) == 1
+    rim = np.where(one_dent, table["rim_amplitude"].to_numpy(dtype=float), math.nan)
+    return _interpolate(table.assign(rim_amplitude=rim), "rim_amplitude", at)
 
 
 def _interpolate(table: pd.DataFrame, column: str, at: float) -> float:
     """``column`` at dV/V = ``at``: the stored value at a stored step, else linear in dV/V
     between the two stored steps around it (NaN if either is NaN, outside the run, or where
-    the run's table has no such column: a run not analysed)."""
+    the run's table has no such column: a run not analysed). Steps without a finite dV/V
+    are left out."""
     if column not in table:
         return math.nan
     dv = table["dV_over_V"].to_numpy(dtype=float)
     q = table[column].to_numpy(dtype=float)
+    finite = np.isfinite(dv)
+    dv, q = dv[finite], q[finite]
     order = np.argsort(dv, kind="stable")
     dv, q = dv[order], q[order]
     if not len(dv) or not dv[0] <= at <= dv[-1]:

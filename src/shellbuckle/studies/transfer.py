@@ -9,9 +9,9 @@ ray in that direction crosses, and the barycentric coordinates of the crossing),
 source conformation is interpolated linearly there (:func:`material_interpolation`): the
 target vertices sample the source's piecewise-linear surface at their own material points.
 That start is then minimized, at the source step's volume fraction, with the target run's own
-energy (its convention, c0 and shape imperfection) by the protocol's minimization (Newton's
-method at fixed volume, certified: inertia 0; no jiggle and no zero-curvature cycle)
-(:func:`transfer`).
+energy (its convention, c0 and shape imperfection) by the protocol's minimization (the
+target's method; with Newton's, the default, at fixed volume and certified: inertia 0; no
+jiggle and no zero-curvature cycle) (:func:`transfer`).
 
 A conformation that belongs to the shell relaxes to the same class, at an energy within the
 discretization error of the target's own; one that belongs to the source mesh only (a state
@@ -46,8 +46,10 @@ def locate_directions(X_reference: np.ndarray, faces: np.ndarray,
     """For each unit vector of ``directions (M, 3)``, the triangle of the mesh ``(X_reference,
     faces)`` that the ray from the reference sphere's centre in that direction crosses, and the
     barycentric coordinates of the crossing: ``(face (M,), weights (M, 3))``, weights summing
-    to 1, each >= 0 up to round-off. ValueError if a ray crosses none of the triangles at its
-    :data:`NEAREST` nearest vertices (a mesh that is no closed star-shaped surface there)."""
+    to 1, each >= 0 up to round-off. The triangles at the :data:`NEAREST` nearest vertices are
+    searched first, then, for the rays none of them holds (skinny triangles), those at more
+    vertices, and last every triangle. ValueError if a ray crosses no triangle at all (no
+    closed surface star-shaped about the centre there)."""
     from scipy.spatial import cKDTree
 
     from ..protocol.imperfection import reference_directions
@@ -56,28 +58,49 @@ def locate_directions(X_reference: np.ndarray, faces: np.ndarray,
     U = reference_directions(X_reference)
     directions = np.asarray(directions, dtype=float)
     indptr, face_ids = _vertex_faces(faces, len(U))
-    _, near = cKDTree(U).query(directions, k=min(NEAREST, len(U)))
-    near = np.atleast_2d(near)
-    candidates = [np.unique(np.concatenate([face_ids[indptr[v]:indptr[v + 1]] for v in row]))
-                  for row in near]
+    tree = cKDTree(U)
+    face = np.zeros(len(directions), dtype=np.int64)
+    weights = np.full((len(directions), 3), -np.inf)
+    todo = np.arange(len(directions))
+    for k in (NEAREST, 4 * NEAREST, 16 * NEAREST):
+        if not len(todo):
+            break
+        _, near = tree.query(directions[todo], k=min(k, len(U)))
+        near = near.reshape(len(todo), -1)
+        candidates = [np.unique(np.concatenate([face_ids[indptr[v]:indptr[v + 1]]
+                                                for v in row])) for row in near]
+        found = _crossings(U, faces, directions[todo], candidates)
+        face[todo], weights[todo] = found
+        todo = todo[~(weights[todo].min(axis=1) >= -INSIDE_TOL)]
+    if len(todo):  # every triangle, for the rays left
+        every = np.arange(len(faces))
+        for chunk in np.array_split(todo, max(1, len(todo) * len(faces) // 200_000)):
+            face[chunk], weights[chunk] = _crossings(U, faces, directions[chunk],
+                                                     [every] * len(chunk))
+        todo = todo[~(weights[todo].min(axis=1) >= -INSIDE_TOL)]
+    if len(todo):
+        raise ValueError(f"the ray in direction {directions[todo[0]].tolist()} crosses no "
+                         "triangle of the mesh")
+    return face, weights
+
+
+def _crossings(U, faces, directions, candidates) -> tuple[np.ndarray, np.ndarray]:
+    """Per direction, of its ``candidates`` (face ids), the face whose crossing by the ray has
+    the largest smallest barycentric coordinate, and those coordinates (``-inf`` where no
+    candidate's plane lies in front of the centre)."""
     width = max(len(c) for c in candidates)
     cand = np.array([np.pad(c, (0, width - len(c)), mode="edge") for c in candidates])
     a, b, c = (U[faces[cand, i]] for i in range(3))  # (M, width, 3) each
     p = np.broadcast_to(directions[:, None, :], a.shape)
-    # the ray t p meets the plane of a face at a - c, b - c coordinates (w0, w1): solve
-    # w0 (a - c) + w1 (b - c) - t p = -c
+    # the ray t p meets the plane of a face where w0 (a - c) + w1 (b - c) - t p = -c
     system = np.stack([a - c, b - c, -p], axis=-1)
     solved = np.linalg.solve(system, -c[..., None])[..., 0]
     w = np.stack([solved[..., 0], solved[..., 1], 1.0 - solved[..., 0] - solved[..., 1]], -1)
-    w[solved[..., 2] <= 0] = -np.inf  # the plane behind the centre
-    best = np.argmax(w.min(axis=-1), axis=1)
+    w[~(solved[..., 2] > 0)] = -np.inf  # the plane behind the centre (or no crossing)
+    smallest = np.nan_to_num(w.min(axis=-1), nan=-np.inf)
+    best = np.argmax(smallest, axis=1)
     rows = np.arange(len(directions))
-    weights = w[rows, best]
-    if not (weights.min(axis=1) >= -INSIDE_TOL).all():
-        bad = int(np.argmin(weights.min(axis=1)))
-        raise ValueError(f"the ray in direction {directions[bad].tolist()} crosses no triangle "
-                         f"at its {near.shape[1]} nearest vertices")
-    return cand[rows, best], weights
+    return cand[rows, best], w[rows, best]
 
 
 def material_interpolation(X_reference: np.ndarray, faces: np.ndarray, values: np.ndarray,
@@ -105,27 +128,40 @@ class Transferred(NamedTuple):
     result: object
 
 
-SAME_SHELL_PROTOCOL = ("shape_imperfection", "shape_degree")
-
-
 def check_same_shell(source, target) -> None:
     """ValueError unless the two runs are the same shell: equal parameters (gamma, nu,
-    convention and the rest) and the same shape imperfection (amplitude and degree, and the
-    seed that draws it)."""
+    convention and the rest), the same spontaneous curvature, and the same shape imperfection
+    (amplitude, and with one its degree and the seed that draws it); and unless both hold
+    gamma and c0 fixed (a run along a gamma or c0 path changes them from step to step)."""
+    from ..protocol.deflate import PARAMETER_CONTROLS
+    from ..protocol.imperfection import DEFAULT_DEGREE
     from ..store.view import Run
 
     a, b = Run.of(source).store, Run.of(target).store
+    for store in (a, b):
+        control = store.protocol.get("control", "volume")
+        if control in PARAMETER_CONTROLS:
+            raise ValueError(f"{store.path} is a path in {control}: only runs whose gamma and "
+                             "c0 are those of every step can be carried")
     if a.params != b.params:
         differ = sorted(k for k in set(a.params) | set(b.params)
                         if a.params.get(k) != b.params.get(k))
         raise ValueError(f"the runs are not the same shell: their parameters differ in "
                          f"{', '.join(differ)}")
     pa, pb = a.protocol, b.protocol
-    names = list(SAME_SHELL_PROTOCOL) + (["seed"] if pa.get("shape_imperfection") else [])
-    differ = [k for k in names if pa.get(k) != pb.get(k)]
-    if differ:
+    if pa.get("c0") != pb.get("c0"):
+        raise ValueError("the runs are not the same shell: their spontaneous curvatures c0 "
+                         "differ")
+
+    def shape(p: dict) -> tuple:
+        amplitude = p.get("shape_imperfection") or 0.0
+        if not amplitude:
+            return (0.0,)
+        return amplitude, p.get("shape_degree") or DEFAULT_DEGREE, p.get("seed")
+
+    if shape(pa) != shape(pb):
         raise ValueError(f"the runs are not the same shell: their shape imperfections differ "
-                         f"in {', '.join(differ)}")
+                         f"(amplitude, degree, seed: {shape(pa)} and {shape(pb)})")
 
 
 def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferred:
