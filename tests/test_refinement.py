@@ -88,6 +88,16 @@ def test_a_sequence_whose_increments_barely_shrink_is_not_extrapolated(p):
     assert fit.method == "fitted" and fit.value == pytest.approx(0.04, rel=1e-9)
 
 
+def test_two_finest_values_within_the_locations_bracket_are_equal():
+    h = mean_edge([3594, 10000, 40000])
+    q = [0.016143, 0.0162910156, 0.0162910157]  # the two finer in one bisection bracket
+    assert richardson(h, q).method == "not converged"  # no order fits a vanishing increment
+    fit = richardson(h, q, resolution=7.4e-5)
+    assert fit.method == "equal" and fit.value == q[-1]
+    assert fit.describe() == "two finest meshes equal within 7.4e-05 (the location's bracket)"
+    assert richardson(h, [0.0161, 0.0163, 0.0165], resolution=7.4e-5).method == "fitted"
+
+
 def test_energy_at_a_stored_step_is_the_stored_value_and_linear_between():
     table = pd.DataFrame({"dV_over_V": [0.0, 0.019, 0.038, 0.057],
                           "E_total": [2.0, 3.0, 5.0, 4.0]})

@@ -72,6 +72,10 @@ THRESHOLDS = {"primary_dV_over_V": "primary buckling dV/V",
 #: (:func:`shellbuckle.theory.classical_threshold`). For a shell with a shape imperfection it
 #: is the end of the imperfect shell's own branch (:data:`IMPERFECT_BRANCH_END`).
 BRANCH_END = {"primary_branch_end_dV_over_V": "sphere branch's end without jiggle dV/V"}
+#: The located thresholds' resolutions (width of the bisection's bracket, collect_runs).
+RESOLUTIONS = {"primary_dV_over_V": "primary_resolution",
+               "axisymmetry_loss_dV_over_V": "axisymmetry_loss_resolution",
+               "wrinkles_dV_over_V": "wrinkles_resolution"}
 IMPERFECT_BRANCH_END = "imperfect shell's branch end without jiggle dV/V"
 CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
 #: Default shape imperfection of the study, in units of each shell's effective thickness: it
@@ -298,7 +302,8 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
 class Extrapolation:
     """``q(h) = value + c h^order`` through the finest meshes; ``method`` says how the order
     was had: ``fitted`` (three meshes, monotone), ``assumed`` (:data:`ASSUMED_ORDER`, two
-    meshes), ``equal`` (the two finest give the same value), ``not converged`` (value NaN:
+    meshes), ``equal`` (the two finest give the same value, to the resolution of a located
+    threshold), ``not converged`` (value NaN:
     three that are not monotone, or a fitted order outside [:data:`MIN_ORDER`,
     :data:`MAX_ORDER`]), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
     ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one),
@@ -309,6 +314,7 @@ class Extrapolation:
     order: float
     c: float
     method: str
+    resolution: float = 0.0  # ``equal``: the resolution within which the two are equal
 
     def curve(self, h) -> np.ndarray:
         return self.value + self.c * np.asarray(h, dtype=float) ** self.order
@@ -319,6 +325,9 @@ class Extrapolation:
         if self.method == "assumed":
             return f"order {self.order:g} assumed (2 meshes)"
         if self.method == "equal":
+            if self.resolution > 0:
+                return (f"two finest meshes equal within {self.resolution:.2g} (the "
+                        "location's bracket)")
             return "two finest meshes equal"
         if self.method == "no value":
             return "no value on any mesh"
@@ -359,8 +368,12 @@ def _order(h, q) -> float | None:
     return float(brentq(gap, low, high, xtol=1e-14, rtol=1e-14))
 
 
-def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER) -> Extrapolation:
+def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
+               resolution: float = 0.0) -> Extrapolation:
     """Richardson extrapolation of ``q`` (values) at mesh sizes ``h`` to h -> 0.
+
+    Two finest values within ``resolution`` of each other (a located threshold is known to its
+    bisection's bracket) are ``equal``: the limit is the finest value, to that resolution.
 
     NaN values of the coarsest meshes are left out and the finest meshes used: with three or
     more, the three finest fit ``q = q0 + c h^p`` exactly when the sequence is monotone (else:
@@ -380,8 +393,9 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER) -> Extrapolation:
         return NO_VALUE if not len(h) else ONE_MESH if len(h) == 1 else NOT_CONVERGED
     if gap:
         return GAP
-    if q[-1] == q[-2]:
-        return Extrapolation(float(q[-1]), math.nan, 0.0, "equal")
+    if q[-1] == q[-2] or abs(q[-1] - q[-2]) <= resolution:
+        return Extrapolation(float(q[-1]), math.nan, 0.0, "equal",
+                             resolution if q[-1] != q[-2] else 0.0)
     if len(h) >= 3:
         h, q = h[-3:], q[-3:]
         d1, d2 = q[1] - q[0], q[2] - q[1]
@@ -440,6 +454,17 @@ def _with_angles(group: pd.DataFrame, energy_at_values) -> pd.DataFrame:
     return group
 
 
+def _resolution(group: pd.DataFrame, quantity: str, sizes) -> float:
+    """The coarsest resolution (bracket width) of a located threshold on the meshes ``sizes``
+    (0 for the other quantities)."""
+    column = RESOLUTIONS.get(quantity)
+    if column is None or column not in group:
+        return 0.0
+    widths = group.loc[group["n_vertices"].isin(sizes), column].to_numpy(dtype=float)
+    widths = widths[np.isfinite(widths)]
+    return float(widths.max()) if len(widths) else 0.0
+
+
 def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
     (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
@@ -457,8 +482,10 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
         for quantity, label in quantities(energy_at_values).items():
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
+            resolution = _resolution(group, quantity, [n for n in sizes
+                                                       if math.isfinite(stats[n][0])][-2:])
             fit = TO_FINEST if quantity.startswith("dent_angle_at_") else richardson(
-                mean_edge(sizes), [stats[n][0] for n in sizes])
+                mean_edge(sizes), [stats[n][0] for n in sizes], resolution=resolution)
             paper = stats.get(PAPER_VERTICES, (math.nan,))[0]
             error = paper - fit.value
             relative = error / abs(fit.value) if fit.value else math.nan
