@@ -191,6 +191,15 @@ def test_the_command_writes_the_table_equal_to_the_runs(study):
         else:
             assert point["old_branch"]["end_lo"] < end < point["old_branch"]["end_hi"]
             assert end > run["primary_dV_over_V"]
+    # the branch end's resolution: its bracket's width
+    collected = refinement.collect([study], ()).set_index("n_vertices")
+    for _, run in runs.iterrows():
+        branch = located(run["path"])["primary_buckling"]["old_branch"]
+        width = collected.loc[run["n_vertices"], "primary_branch_end_resolution"]
+        if branch["end_lo"] is None:
+            assert math.isnan(width)
+        else:
+            assert width == branch["end_hi"] - branch["end_lo"] > 0
     # the rim harmonic inside the dented range: the analysis's own, between the steps around
     at = 0.25
     rims = refinement.collect([study], (at,)).set_index("n_vertices")[refinement.rim_column(at)]

@@ -75,7 +75,8 @@ BRANCH_END = {"primary_branch_end_dV_over_V": "sphere branch's end without jiggl
 #: The located thresholds' resolutions (width of the bisection's bracket, collect_runs).
 RESOLUTIONS = {"primary_dV_over_V": "primary_resolution",
                "axisymmetry_loss_dV_over_V": "axisymmetry_loss_resolution",
-               "wrinkles_dV_over_V": "wrinkles_resolution"}
+               "wrinkles_dV_over_V": "wrinkles_resolution",
+               "primary_branch_end_dV_over_V": "primary_branch_end_resolution"}
 IMPERFECT_BRANCH_END = "imperfect shell's branch end without jiggle dV/V"
 CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
 #: Default shape imperfection of the study, in units of each shell's effective thickness: it
@@ -232,6 +233,14 @@ def branch_end(point: dict | None) -> float:
     return 0.5 * (float(branch["end_lo"]) + float(branch["end_hi"]))
 
 
+def branch_end_resolution(point: dict | None) -> float:
+    """The width of that bracket (NaN without one)."""
+    branch = (point or {}).get("old_branch") or {}
+    if branch.get("end_lo") is None or branch.get("end_hi") is None:
+        return math.nan
+    return float(branch["end_hi"]) - float(branch["end_lo"])
+
+
 def _imperfection(protocol: dict, params: dict | None = None) -> str:
     """A run's imperfections in words: the shape (in units of R, and of the effective
     thickness where ``params`` give one) and the jiggle."""
@@ -261,7 +270,8 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """One row per finished run of ``paths`` (run or sweep folders): the columns of
     :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
     ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
-    was located before the branch was followed, or is no jump), ``E_over_kappa_at_<a>``,
+    was located before the branch was followed, or is no jump) and its bracket's width
+    ``primary_branch_end_resolution``, ``E_over_kappa_at_<a>``,
     ``rim_amplitude_at_<a>`` (:func:`rim_amplitude_at`) and
     ``dent_axis_at_<a>`` (:func:`dent_axis_at`, a tuple or None) for each ``a`` of
     ``energy_at_values``."""
@@ -274,14 +284,16 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     tables: dict = {}
     runs = collect_runs(paths, tables=tables)
     runs = runs[runs["status"] == "finished"].reset_index(drop=True)
-    imperfections, energies, ends = [], {a: [] for a in energy_at_values}, []
+    imperfections, energies, ends, end_widths = [], {a: [] for a in energy_at_values}, [], []
     axes = {a: [] for a in energy_at_values}
     rims = {a: [] for a in energy_at_values}
     for path in runs["path"]:
         store = RunStore.open(path)
         meta = store.meta
         imperfections.append(_imperfection(meta.get("protocol", {}), meta.get("params")))
-        ends.append(branch_end(_primary_point(path, tables[path], read_located(path))))
+        point = _primary_point(path, tables[path], read_located(path))
+        ends.append(branch_end(point))
+        end_widths.append(branch_end_resolution(point))
         kappa = float(meta["params"]["kappa"])
         for a in energy_at_values:
             energies[a].append(energy_at(tables[path], kappa, a))
@@ -289,6 +301,7 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
             axes[a].append(dent_axis_at(store, tables[path], a))
     runs["imperfection"] = imperfections
     runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
+    runs["primary_branch_end_resolution"] = np.array(end_widths, dtype=float)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
         runs[rim_column(a)] = rims[a]
