@@ -388,7 +388,7 @@ def test_rays_between_skinny_triangles_are_located_all_the_same():
     coarse, fine = random_sphere(500, seed=3, iterations=0), random_sphere(20000, seed=4,
                                                                            iterations=0)
     U, p = reference_directions(coarse.X), reference_directions(fine.X)
-    indptr, face_ids = module._vertex_faces(np.asarray(coarse.faces), len(U))
+    indptr, face_ids = coarse.topology.vertex_faces_ptr, coarse.topology.vertex_faces
     _, near = cKDTree(U).query(p, k=module.NEAREST)
     first = [np.unique(np.concatenate([face_ids[indptr[v]:indptr[v + 1]] for v in row]))
              for row in near]

@@ -33,14 +33,6 @@ NEAREST = 4
 INSIDE_TOL = 1e-9
 
 
-def _vertex_faces(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """CSR ``(indptr, face ids)`` of the faces at each vertex."""
-    flat = faces.ravel()
-    order = np.argsort(flat, kind="stable")
-    counts = np.bincount(flat, minlength=n_vertices)
-    return np.concatenate([[0], np.cumsum(counts)]), order // 3
-
-
 def locate_directions(X_reference: np.ndarray, faces: np.ndarray,
                       directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each unit vector of ``directions (M, 3)``, the triangle of the mesh ``(X_reference,
@@ -52,12 +44,14 @@ def locate_directions(X_reference: np.ndarray, faces: np.ndarray,
     closed surface star-shaped about the centre there)."""
     from scipy.spatial import cKDTree
 
+    from ..mesh.topology import Topology
     from ..protocol.imperfection import reference_directions
 
     faces = np.asarray(faces, dtype=np.int64)
     U = reference_directions(X_reference)
     directions = np.asarray(directions, dtype=float)
-    indptr, face_ids = _vertex_faces(faces, len(U))
+    topology = Topology.from_faces(faces, len(U))
+    indptr, face_ids = topology.vertex_faces_ptr, topology.vertex_faces
     tree = cKDTree(U)
     face = np.zeros(len(directions), dtype=np.int64)
     weights = np.full((len(directions), 3), -np.inf)
