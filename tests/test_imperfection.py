@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 import scipy.special
-from scipy.spatial import cKDTree
 
 from shellbuckle.mesh import icosphere
 from shellbuckle.mesh.random_sphere import random_sphere
@@ -24,6 +23,7 @@ from shellbuckle.solve import minimize
 from shellbuckle.solve.gauge import remove_rigid
 from shellbuckle.solve.relax import move
 from shellbuckle.solve.system import KKTSystem
+from shellbuckle.studies.transfer import material_interpolation
 
 
 @pytest.fixture(scope="module")
@@ -46,27 +46,9 @@ def normal_displacement(mesh, amplitude, degree, rng, X=None):
 
 
 def interpolate(mesh, values, points):
-    """Barycentric interpolation of vertex ``values`` of a sphere mesh at unit ``points``: in
-    the face (among those at the 3 nearest vertices) that the ray to the point crosses."""
-    X = mesh.X / np.linalg.norm(mesh.X, axis=1)[:, None]
-    faces = mesh.faces
-    at_vertex = [[] for _ in range(len(X))]
-    for f, face in enumerate(faces):
-        for v in face:
-            at_vertex[v].append(f)
-    _, near = cKDTree(X).query(points, k=3)
-    out = np.empty(len(points))
-    for i, p in enumerate(points):
-        best, weights = None, None
-        for f in {f for v in near[i] for f in at_vertex[v]}:
-            a, b, c = X[faces[f]]
-            # the ray t p meets the plane of the face at barycentric coordinates w
-            w = np.linalg.solve(np.column_stack([a - c, b - c, -p]), -c)[:2]
-            w = np.array([w[0], w[1], 1 - w[0] - w[1]])
-            if best is None or w.min() > weights.min():
-                best, weights = f, w
-        out[i] = weights @ values[faces[best]]
-    return out
+    """Barycentric interpolation of vertex ``values`` of a sphere mesh at unit ``points``, in
+    the face that the ray to each point crosses (the refinement study's transfer)."""
+    return material_interpolation(mesh.X, mesh.faces, values, points)
 
 
 def real_harmonics_scipy(directions, degree):
