@@ -172,7 +172,7 @@ def _interpolate(table: pd.DataFrame, column: str, at: float) -> float:
     dv, q = dv[order], q[order]
     if not len(dv) or not dv[0] <= at <= dv[-1]:
         return math.nan
-    exact = np.flatnonzero(dv == at)
+    exact = np.flatnonzero(dv == at)  # (np.interp gives NaN there beside a NaN step)
     if len(exact):
         return float(q[exact[0]])
     i = int(np.searchsorted(dv, at))  # dv[i - 1] < at < dv[i]
@@ -223,22 +223,26 @@ def _primary_point(path, table, points: dict) -> dict | None:
     return None if primary is None else located_point(primary, points)
 
 
+def _branch_bracket(point: dict | None) -> tuple[float, float] | None:
+    """``(end_lo, end_hi)`` of the old branch's end of a located point, or None."""
+    branch = (point or {}).get("old_branch") or {}
+    if branch.get("end_lo") is None or branch.get("end_hi") is None:
+        return None
+    return float(branch["end_lo"]), float(branch["end_hi"])
+
+
 def branch_end(point: dict | None) -> float:
     """The middle of the bracket of the old branch's end of a located point (NaN without
     one: not located, located before the branch was followed, a continuous event, or a branch
     that goes on past the step)."""
-    branch = (point or {}).get("old_branch") or {}
-    if branch.get("end_lo") is None or branch.get("end_hi") is None:
-        return math.nan
-    return 0.5 * (float(branch["end_lo"]) + float(branch["end_hi"]))
+    bracket = _branch_bracket(point)
+    return math.nan if bracket is None else 0.5 * (bracket[0] + bracket[1])
 
 
 def branch_end_resolution(point: dict | None) -> float:
     """The width of that bracket (NaN without one)."""
-    branch = (point or {}).get("old_branch") or {}
-    if branch.get("end_lo") is None or branch.get("end_hi") is None:
-        return math.nan
-    return float(branch["end_hi"]) - float(branch["end_lo"])
+    bracket = _branch_bracket(point)
+    return math.nan if bracket is None else bracket[1] - bracket[0]
 
 
 def _imperfection(protocol: dict, params: dict | None = None) -> str:
@@ -406,7 +410,7 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
         return NO_VALUE if not len(h) else ONE_MESH if len(h) == 1 else NOT_CONVERGED
     if gap:
         return GAP
-    if q[-1] == q[-2] or abs(q[-1] - q[-2]) <= resolution:
+    if abs(q[-1] - q[-2]) <= resolution:  # equal values whatever the resolution
         return Extrapolation(float(q[-1]), math.nan, 0.0, "equal",
                              resolution if q[-1] != q[-2] else 0.0)
     if len(h) >= 3:
