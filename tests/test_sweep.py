@@ -402,8 +402,8 @@ def test_a_local_cluster_serves_on_a_free_local_port_without_a_warning(recwarn):
     try:
         client, owned = _client(None, 1)
         try:
-            address = client.cluster.scheduler.http_server.port
-            assert address not in (0, 8787)
+            port = client.cluster.scheduler.http_server.port
+            assert port not in (0, 8787)
         finally:
             for thing in owned:
                 thing.close()
