@@ -205,3 +205,31 @@ def test_a_deflation_without_figure_or_location_does_not_load_the_table_librarie
                          check=True, timeout=300)
     assert "steps: 1, dV/V = 0.0190" in out.stdout
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+@pytest.mark.parametrize("argv", [
+    ["deflate", "--gamma", "-1"],
+    ["deflate", "--temperature", "0.1", "--jiggle", "0.2"],
+    ["deflate", "--gamma", "1e6", "--vertices", "500"],
+    ["deflate", "--shape-imperfection-d", "9"],
+    ["deflate", "--help"],
+    ["refine", "--shape-degree", "critic", "--out", "x"],
+])
+def test_refusals_and_help_do_not_load_the_energies_or_the_solvers(argv, tmp_path):
+    # bad input is refused, and the help printed, from the options' descriptions alone
+    # (protocol.spec, energies.kinds): no compiled kernels, no sparse algebra, no run store
+    import subprocess
+    import sys
+
+    heavy = ("numba", "scipy", "h5py", "pandas", "shellbuckle.run", "shellbuckle.energies.total",
+             "shellbuckle.protocol.deflate")
+    code = ("import sys; from shellbuckle.cli import main\n"
+            f"try:\n    code = main({argv!r})\nexcept SystemExit as exc:\n    code = exc.code\n"
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules)); sys.exit(code)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, cwd=tmp_path)
+    assert out.returncode == (0 if "--help" in argv else 2), out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    assert not (tmp_path / "x").exists() and not (tmp_path / "runs").exists()
+    if "--help" not in argv:
+        assert out.stderr.count("\n") == 1 and argv[1] in out.stderr

@@ -76,7 +76,7 @@ def _sigterm_interrupts():
 
 
 def _interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
-    from .run import interrupt_of
+    from .util import interrupt_of
 
     return interrupt_of(exc)
 

@@ -82,7 +82,7 @@ class RunFields:
     """Surface fields of a run's conformations, with the run's own energy terms built once.
 
     ``X0 (V, 3)`` the stress-free shape (the initial sphere, or the imperfect surface of a
-    shape imperfection, :meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`),
+    shape imperfection, :meth:`~shellbuckle.protocol.spec.Protocol.stress_free`),
     ``faces (F, 3)``, ``stretching``
     (:class:`~shellbuckle.energies.stretching.Stretching` with the run's rest state),
     ``bending`` (the run's bending term, Jülicher or Evolver ``star_perp``), ``kappa``,

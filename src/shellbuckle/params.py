@@ -73,6 +73,11 @@ _FACTORS = {"helfrich": 1.0, "paper": 0.25, "evolver-modulus": 0.5}
 _DENSITIES = {"helfrich": "1/2 kappa (c1 + c2 - c0)^2", "paper": "1/2 kappa (H - H0)^2",
               "evolver-modulus": "kappa (H - H0)^2"}
 
+MAIN_JOB_GAMMA = 15163.0
+"""gamma of ``deflate()`` and ``shellbuckle deflate`` without parameters: in the wrinkled regime
+of our runs on the paper's mesh (a capsule, polygonal from dV/V = 0.13, wrinkled with W = 4-5
+from 0.27; docs/reproduction.md)."""
+
 
 def convention_formula(convention: str) -> str:
     """The bending energy density of a convention, e.g. ``"1/2 kappa (H - H0)^2"``."""

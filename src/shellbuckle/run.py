@@ -24,24 +24,21 @@ from pathlib import Path
 import numpy as np
 
 from .mesh.mesh import Mesh
-from .params import DEFAULT_CONVENTION, ShellParameters, bending_factor
+from .params import DEFAULT_CONVENTION, MAIN_JOB_GAMMA, ShellParameters, bending_factor
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
 from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
+from .protocol.spec import DEFAULT_MAX_ITER
 from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
 from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL
 from .store.run import RunStore
 from .store.view import Run
+from .util import interrupt_of
 
 log = logging.getLogger(__name__)
 
-
-MAIN_JOB_GAMMA = 15163.0
-"""gamma of ``deflate()`` and ``shellbuckle deflate`` without parameters: in the wrinkled regime
-of our runs on the paper's mesh (a capsule, polygonal from dV/V = 0.13, wrinkled with W = 4-5
-from 0.27; docs/reproduction.md)."""
 
 
 def default_out(params: ShellParameters, seed: int) -> Path:
@@ -53,7 +50,7 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
             dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
-            max_iter: int = protocol_mod.DEFAULT_MAX_ITER, stop_at_contact: bool = True,
+            max_iter: int = DEFAULT_MAX_ITER, stop_at_contact: bool = True,
             c0: float | None = None, prerelax: bool = True, direct_return: bool = True,
             smooth_jiggle: float | None = None, smooth_degree: int | None = None,
             shape_imperfection: float | None = None, shape_degree: int | None = None,
@@ -77,14 +74,14 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     (:mod:`shellbuckle.protocol.imperfection`, the same field on any mesh); give at most one.
     ``shape_imperfection`` (units of R) and ``shape_degree`` make the shell itself imperfect:
     its stress-free shape is the sphere moved radially by a seeded field of that rms, the same
-    shell on any mesh (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`); the run
+    shell on any mesh (:meth:`~shellbuckle.protocol.spec.Protocol.stress_free`); the run
     starts there, whatever the jiggle (``smooth_jiggle=0`` for none).
     ``max_iter`` bounds each minimization (Newton steps, i.e. factorizations, with Newton's
     method; iterations with the others): with ``method="cg"`` or ``"gd"``
     a small budget quenches the shell as a fixed-iteration Surface Evolver script does (the
     paper's multi-dimple "potato" without the c0 cycle); Newton converges well within it.
     ``prerelax`` starts every Newton minimization with the preconditioned relaxation (see
-    :class:`~shellbuckle.protocol.deflate.Protocol`); off, Newton starts at once (slower).
+    :class:`~shellbuckle.protocol.spec.Protocol`); off, Newton starts at once (slower).
     ``direct_return``: after the zero-curvature cycle the last minimization starts at the
     minimum before the cycle when the way there is downhill (see
     :func:`~shellbuckle.protocol.deflate.downhill_path`); off, always at the flat minimum.
@@ -445,21 +442,6 @@ class _Interrupts:
         elif handler == signal.SIG_DFL:
             self.restore()
             os.kill(os.getpid(), signum)
-
-
-def interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
-    """The interrupt (a ``KeyboardInterrupt``, or a subclass such as the CLI's SIGTERM) behind
-    ``exc``, or None: ``exc`` itself, or one in its chain of causes and contexts. An interrupt
-    that arrives inside a compiled call (a Numba kernel, a linear solver) surfaces as another
-    exception, e.g. ``SystemError: ... returned a result with an exception set``, whose
-    context is the interrupt."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, progress: bool,

@@ -46,7 +46,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from .protocol.deflate import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
+from .protocol.spec import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
                               write_sweep_file)
@@ -79,7 +79,7 @@ MAX_SHAPE_IN_D = 1000.0
 
 
 def _bending_kinds() -> tuple:
-    from .energies.total import BENDING_KINDS
+    from .energies.kinds import BENDING_KINDS
 
     return BENDING_KINDS
 
@@ -164,7 +164,7 @@ class SweepSpec:
     - ``shape_imperfection`` (rms radial displacement of the stress-free shape in units of R,
       in [0, 0.1]; default None: a spherical shell) and ``shape_degree`` (integers in [2, 30];
       None: the default degree): the shell's own imperfection
-      (:meth:`~shellbuckle.protocol.deflate.Protocol.stress_free`), drawn with each run's
+      (:meth:`~shellbuckle.protocol.spec.Protocol.stress_free`), drawn with each run's
       seed, whatever the jiggle; ``None`` among the amplitudes adds spherical shells too.
       ``shape_imperfection_d`` gives amplitudes in units of each shell's thickness instead
       (in [0, 1000]; the effective thickness of the energy convention,
@@ -260,8 +260,8 @@ class SweepSpec:
 
     def _check_smooth(self, put) -> None:
         """The smooth imperfection's axes: in range, and exclusive with the per-vertex jiggle
-        (:class:`~shellbuckle.protocol.deflate.Protocol` takes one or the other)."""
-        from .protocol.deflate import MAX_SMOOTH_DEGREE
+        (:class:`~shellbuckle.protocol.spec.Protocol` takes one or the other)."""
+        from .protocol.spec import MAX_SMOOTH_DEGREE
 
         self._check_field_axes(put, "smooth", "smooth_jiggle", MAX_SMOOTH_DEGREE)
         smooth = [a for a in self.smooth_jiggle if a is not None]
@@ -280,7 +280,7 @@ class SweepSpec:
         MAX_SMOOTH_JIGGLE] (units of R) or None (and ``in_d``'s in [0, MAX_SHAPE_IN_D], units
         of d, if given), degrees ``<kind>_degree`` in [2, ``max_degree``], ``keyword`` or
         None, a degree only with an amplitude."""
-        from .protocol.deflate import MAX_SMOOTH_JIGGLE
+        from .protocol.spec import MAX_SMOOTH_JIGGLE
 
         degree = f"{kind}_degree"
         put(amplitude, tuple(
@@ -316,7 +316,7 @@ class SweepSpec:
         """The shape imperfection's axes: in range; a degree only with an amplitude; every
         shell of the grid with a positive curvature (and, in units of d, an amplitude in range
         in units of R)."""
-        from .protocol.deflate import MAX_SHAPE_DEGREE, MAX_SMOOTH_JIGGLE
+        from .protocol.spec import MAX_SHAPE_DEGREE, MAX_SMOOTH_JIGGLE
         from .protocol.imperfection import CRITICAL, DEFAULT_DEGREE, check_shape
 
         self._check_field_axes(put, "shape", "shape_imperfection", MAX_SHAPE_DEGREE,

@@ -1,6 +1,7 @@
 """Small helpers shared by the store, the sweep, the studies and the command line.
 
-Nothing here knows about shells: a timestamp and plain JSON values. The module imports only
+Nothing here knows about shells: a timestamp, plain JSON values and the interrupt behind an
+exception. The module imports only
 the standard library, so any module of the package may use it.
 """
 
@@ -35,3 +36,18 @@ def plain(value, *, strict: bool = False):
 def json_safe(value):
     """``value`` ready for strict JSON: :func:`plain` with non-finite floats replaced by None."""
     return plain(value, strict=True)
+
+
+def interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt (a ``KeyboardInterrupt``, or a subclass such as the CLI's SIGTERM) behind
+    ``exc``, or None: ``exc`` itself, or one in its chain of causes and contexts. An interrupt
+    that arrives inside a compiled call (a Numba kernel, a linear solver) surfaces as another
+    exception, e.g. ``SystemError: ... returned a result with an exception set``, whose
+    context is the interrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None

@@ -1,7 +1,7 @@
 """Options that several commands share, declared once: the shell, the protocol, threads, steps.
 
-The defaults shown in the help are read from the library (:data:`shellbuckle.run.MAIN_JOB_GAMMA`,
-the fields of :class:`~shellbuckle.protocol.deflate.Protocol` and the arguments of
+The defaults shown in the help are read from the library (:data:`shellbuckle.params.MAIN_JOB_GAMMA`,
+the fields of :class:`~shellbuckle.protocol.spec.Protocol` and the arguments of
 :meth:`Protocol.paper`), and the options themselves default to None, so that a command can
 tell an option given from one left out: ``deflate`` then lets the library's defaults apply,
 ``continue`` keeps the stored run's. ``sweep`` declares the same options as comma-separated
@@ -26,7 +26,7 @@ NU_HELP = ("2D Poisson ratio nu (default 1/3, incompressible); the same rule in 
 
 def default_gamma() -> float:
     """The one default gamma of the command line: the main job's (it wrinkles)."""
-    from ..run import MAIN_JOB_GAMMA
+    from ..params import MAIN_JOB_GAMMA
 
     return MAIN_JOB_GAMMA
 
@@ -139,7 +139,7 @@ def protocol_defaults() -> dict:
     """The protocol's defaults: the fields of :class:`Protocol` and the ``dv``/``until`` of
     :meth:`Protocol.paper`, with the jiggle's default temperature and the smooth
     imperfection's default degree."""
-    from ..protocol.deflate import DEFAULT_TEMPERATURE, Protocol
+    from ..protocol.spec import DEFAULT_TEMPERATURE, Protocol
     from ..protocol.imperfection import DEFAULT_DEGREE
 
     out = {f.name: f.default for f in dataclasses.fields(Protocol)
@@ -154,8 +154,8 @@ def protocol_defaults() -> dict:
 
 @lru_cache(maxsize=1)
 def _options() -> dict:
-    from ..energies.total import BENDING_KINDS
-    from ..protocol.deflate import METHODS
+    from ..energies.kinds import BENDING_KINDS
+    from ..protocol.spec import METHODS
     from ..protocol.schedule import MAX_DV_OVER_V
 
     d = protocol_defaults()

@@ -82,8 +82,6 @@ def _cmd(args) -> int:
                                  f"without --from (a continued run keeps the stored run's "
                                  f"{kept})")
         return continue_run(_as_continue(args))
-    from ..run import deflate
-
     options = _protocol(args)
     located = locate_arguments(args)
     if args.out is not None:
@@ -98,6 +96,8 @@ def _cmd(args) -> int:
                          f"sphere (--vertices, --icosphere), not on a --mesh file, whose "
                          f"vertices would be moved onto a sphere ({args.mesh})")
     options = {k: v for k, v in options.items() if v is not None and k not in IN_D}
+    from ..run import deflate
+
     run = deflate(mesh, params, out=args.out, progress=not args.quiet,
                   form_factors=from_file.get("form_factors"), threads=args.threads, **located,
                   **options)
@@ -108,7 +108,7 @@ def _cmd(args) -> int:
 
 def _protocol(args) -> dict:
     """The protocol options given, checked (a Protocol is built) before any mesh is."""
-    from ..protocol.deflate import Protocol
+    from ..protocol.spec import Protocol
 
     choices = [x is not None for x in (args.vertices, args.icosphere, args.mesh)]
     if sum(choices) > 1:
@@ -151,8 +151,12 @@ def _protocol(args) -> dict:
 def _check_smooth_options(args, options: dict) -> None:
     """The smooth imperfection (``--smooth-jiggle`` or ``--smooth-jiggle-d``, and
     ``--smooth-degree``) replaces the per-vertex jiggle: one amplitude, without
-    ``--temperature`` or ``--jiggle``; the shape imperfection likewise takes one amplitude;
+    ``--temperature`` or ``--jiggle`` (which are not given together either); the shape imperfection likewise takes one amplitude;
     a degree only with an amplitude."""
+    if "jiggle" in options and "temperature" in options:
+        raise ValueError(f"--jiggle {typed(args, '--jiggle', options['jiggle'])}: allowed: "
+                         "without --temperature (two scales of the same per-vertex jiggle: "
+                         "give one)")
     for kind, amplitude in (("smooth", "smooth_jiggle"), ("shape", "shape_imperfection")):
         flag, degree = "--" + amplitude.replace("_", "-"), f"--{kind}-degree"
         given = [name for name in (amplitude, amplitude + "_d") if name in options]
@@ -175,11 +179,9 @@ def _shell(args, seed: int, options: dict):
     """The starting mesh, the shell parameters and what a mesh file says about the shell,
     checked (the mesh resolves the elastic length, c0 and the pressures) before any folder
     is made; the randomized or icosahedral mesh is built after the checks."""
-    from ..mesh import icosphere
-    from ..mesh.random_sphere import random_sphere
-    from ..run import params_for_mesh, shell_from_file
-
     if args.mesh is not None:
+        from ..run import params_for_mesh, shell_from_file
+
         input_file("--mesh", args.mesh)
         try:
             mesh, from_file = shell_from_file(args.mesh)
@@ -203,6 +205,9 @@ def _shell(args, seed: int, options: dict):
         vertices = DEFAULT_VERTICES if args.vertices is None else args.vertices
         n, what = vertices, f"--vertices {typed(args, '--vertices', vertices)}"
     _check_shell(args, params, n, what, options)
+    from ..mesh import icosphere
+    from ..mesh.random_sphere import random_sphere
+
     if args.icosphere is not None:
         return icosphere(args.icosphere, R=params.R), params, {}
     return random_sphere(n, seed=seed, R=params.R), params, {}

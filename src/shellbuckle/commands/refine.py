@@ -137,7 +137,7 @@ def _shape(args) -> dict:
     """The shape imperfection's options of the study (refinement.study_spec): one amplitude
     (units of d or of R), a degree an integer in range or ``critical``, none for spherical
     shells."""
-    from ..protocol.deflate import MAX_SHAPE_DEGREE
+    from ..protocol.spec import MAX_SHAPE_DEGREE
     from ..protocol.imperfection import CRITICAL
     from ..studies.refinement import SHAPE_IN_D
 

@@ -14,11 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .bending import Bending
+from .kinds import BENDING_KINDS
 from .stretching import Stretching
-
-BENDING_KINDS = ("juelicher", "evolver")
-"""Bending discretizations: Jülicher's edge-based mean curvature (default) and Surface
-Evolver's ``star_perp_sq_mean_curvature``."""
 
 
 def make_bending(kind: str, mesh, kappa: float, c0: float, c0_profile=None):

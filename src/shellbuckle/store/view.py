@@ -2,7 +2,7 @@
 
 :class:`~shellbuckle.store.run.RunStore` reads and writes a run folder in plain values;
 :class:`Run` gives them as :class:`~shellbuckle.params.ShellParameters`,
-:class:`~shellbuckle.protocol.deflate.Protocol`, a table and meshes, and resolves step indices
+:class:`~shellbuckle.protocol.spec.Protocol`, a table and meshes, and resolves step indices
 (:meth:`Run.step`). It lives here, below the run-level analysis and the run drivers of
 :mod:`shellbuckle.run` (which re-exports it), so that both can open a run folder. Its own
 :meth:`Run.classify`, :meth:`Run.plot`, :meth:`Run.pv` and :meth:`Run.view` import, when

@@ -127,7 +127,7 @@ def check_same_shell(source, target) -> None:
     convention and the rest), the same spontaneous curvature, and the same shape imperfection
     (amplitude, and with one its degree and the seed that draws it); and unless both hold
     gamma and c0 fixed (a run along a gamma or c0 path changes them from step to step)."""
-    from ..protocol.deflate import PARAMETER_CONTROLS
+    from ..protocol.spec import PARAMETER_CONTROLS
     from ..protocol.imperfection import DEFAULT_DEGREE
     from ..store.view import Run
 
