@@ -376,6 +376,61 @@ def test_only_the_same_shell_is_carried(study, tmp_path):
     check_same_shell(path, path)
 
 
+def test_the_transfer_command_compares_the_carried_minimum_with_the_targets_own(study,
+                                                                               tmp_path,
+                                                                               capsys):
+    # on the sphere branch the carried minimum is the target's own step (the API's oracle
+    # above), so the command's relative energy vanishes both ways; the carried minimum it
+    # writes is that state, on the target's mesh
+    import json
+
+    import meshio
+
+    from shellbuckle.cli import main
+
+    runs = {int(r["n_vertices"]): r["path"] for _, r in collect_runs([study]).iterrows()}
+    out = tmp_path / "carried.vtu"
+    assert main(["transfer", str(runs[300]), str(runs[600]), "--step", "1", "--both-ways",
+                 "--threads", "1", "--json", "--out", str(out)]) == 0
+    there, back = json.loads(capsys.readouterr().out)
+    for r in (there, back):
+        assert r["certified"] and abs(r["relative"]) < 1e-9
+        assert (r["carried"]["shape"], r["carried"]["W"]) == (r["own"]["shape"], r["own"]["W"])
+        assert r["start_E_over_kappa"] > r["carried"]["E_over_kappa"]
+    mesh, own = meshio.read(out), Run.open(runs[600])
+    assert len(mesh.points) == own.store.n_vertices
+    edges = own.mesh(1).topology.edges  # the same state up to a rigid motion
+
+    def lengths(X):
+        return np.linalg.norm(X[edges[:, 0]] - X[edges[:, 1]], axis=1)
+
+    np.testing.assert_allclose(lengths(mesh.points), lengths(own.positions(1)), rtol=0,
+                               atol=1e-7)
+    # the table printed for a user says the same
+    assert main(["transfer", str(runs[600]), str(runs[300]), "--step", "1",
+                 "--threads", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "a certified minimum" in text and "the same class" in text
+
+
+def test_the_transfer_command_refuses_before_any_work(study, tmp_path, capsys):
+    from shellbuckle.cli import main
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.run import deflate
+
+    path = str(collect_runs([study])["path"].iloc[0])
+    other = deflate(random_sphere(200, seed=0), ShellParameters.from_gamma(300, nu=1 / 3),
+                    until=0.019, out=tmp_path / "other", locate=False, threads=1)
+    for argv, says in (([path, str(other.path)], "TARGET"),
+                       ([path, path, "--out", str(tmp_path / "x.txt")], "--out"),
+                       ([path, path, "--step", "99"], "--step 99"),
+                       ([path, str(tmp_path / "none")], "TARGET")):
+        assert main(["transfer", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err
+    assert not (tmp_path / "x.txt").exists()
+
+
 def test_rays_between_skinny_triangles_are_located_all_the_same():
     # an unrelaxed random Delaunay sphere: some rays cross a triangle none of whose corners is
     # among the nearest vertices of the ray

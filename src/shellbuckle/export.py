@@ -53,9 +53,9 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FORMATS", "SERIES_FORMATS", "RunFields", "export_step", "export_series",
-           "field_data", "run_metadata", "step_metadata", "resolve_step", "default_export_path",
-           "default_series_path"]
+__all__ = ["FORMATS", "SERIES_FORMATS", "RunFields", "export_step", "export_conformation",
+           "export_series", "field_data", "run_metadata", "step_metadata", "resolve_step",
+           "default_export_path", "default_series_path"]
 
 #: format name -> file extension
 FORMATS = {"vtk": ".vtk", "vtu": ".vtu", "ply": ".ply", "obj": ".obj", "stl": ".stl", "fe": ".fe"}
@@ -183,12 +183,45 @@ def export_step(run, step: int, path, fmt: str | None = None) -> Path:
     run = _open(run)
     path, fmt = _format_of(Path(path), fmt)
     step = resolve_step(run, step)
+    record = run.store.record(step)
+    path = _write(run, run.positions(step), path, fmt,
+                  f"step {step} of run {Path(run.path).name}: dV/V = "
+                  f"{record['dV_over_V']:.6g}", lambda: field_data(run, step))
+    log.info("step %d of %s written to %s", step, run.path, path)
+    return path
+
+
+def export_conformation(run, X, path, fmt: str | None = None, *, values: dict | None = None,
+                        what: str = "a conformation") -> Path:
+    """Write positions ``X (V, 3)`` on the mesh of ``run`` (a state the run did not store,
+    e.g. a step of another mesh carried to this one, :mod:`shellbuckle.studies.transfer`) to
+    ``path``, with the fields of :func:`export_step` under the run's energy; a ``vtu`` file
+    carries the run's parameters and ``values`` (numbers, e.g. ``dV_over_V`` and
+    ``E_over_kappa``) as field data, an ``fe`` file says ``what`` in its title."""
+    run = _open(run)
+    path, fmt = _format_of(Path(path), fmt)
+    X = np.asarray(X, dtype=np.float64)
+    if X.shape != (run.store.n_vertices, 3):
+        raise ValueError(f"positions of shape {X.shape} are not a conformation of the "
+                         f"{run.store.n_vertices}-vertex mesh of {str(run.path)!r}")
+
+    def fields() -> dict:
+        meta = run_metadata(run)
+        meta.pop("energy_convention")
+        return meta | {k: v for k, v in (values or {}).items()}
+
+    return _write(run, X, path, fmt, f"{what} on the mesh of run {Path(run.path).name}",
+                  fields)
+
+
+def _write(run, X: np.ndarray, path: Path, fmt: str, title: str, field_values) -> Path:
+    """``X`` on the run's mesh in ``path`` (format ``fmt``), with the fields of the module
+    docstring; ``field_values()`` gives a vtu file's field data, ``title`` heads an fe file."""
     if not path.parent.is_dir():
         raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
-    X = np.asarray(run.positions(step), dtype=np.float64)
     fields = RunFields.of(run)
     if fmt == "fe":
-        return _export_evolver(run, step, X, fields, path)
+        return _export_evolver(run, X, fields, path, title)
     from .mesh.io import write_mesh
     from .mesh.mesh import Mesh
 
@@ -207,8 +240,7 @@ def export_step(run, step: int, path, fmt: str | None = None) -> Path:
         cell_data["stretching_energy_density"] = fields.stretching_density(X)
     write_mesh(path, mesh, point_data=point_data, cell_data=cell_data)
     if fmt == "vtu":
-        _add_vtu_field_data(path, field_data(run, step))
-    log.info("step %d of %s written to %s", step, run.path, path)
+        _add_vtu_field_data(path, field_values())
     return path
 
 
@@ -281,7 +313,7 @@ def _add_vtu_field_data(path: Path, values: dict) -> None:
     path.write_bytes(data[:at] + b"\n" + block + data[at:])
 
 
-def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path) -> Path:
+def _export_evolver(run, X: np.ndarray, fields: RunFields, path: Path, what: str) -> Path:
     from .energies.volume import Volume
     from .mesh.evolver_io import write_evolver
     from .mesh.mesh import Mesh
@@ -289,16 +321,14 @@ def _export_evolver(run, step: int, X: np.ndarray, fields: RunFields, path: Path
     params = run.params
     mesh = Mesh.from_arrays(X, run.faces)
     volume = Volume(mesh.faces, mesh.n_vertices).value(X)
-    record = run.store.record(step)
-    title = (f"step {step} of run {Path(run.path).name}: dV/V = {record['dV_over_V']:.6g}, "
-             f"gamma = {params.gamma:.6g}, nu = {params.nu:.6g}, c0 = {fields.c0:.6g}")
+    title = (f"{what}, gamma = {params.gamma:.6g}, nu = {params.nu:.6g}, "
+             f"c0 = {fields.c0:.6g}")
     if params.energy_convention != "helfrich":
         title += (f", energy convention {params.energy_convention} (kappa = {params.kappa:.6g}:"
                   f" the helfrich modulus below is {params.kappa_helfrich:.6g})")
     c0 = fields.c0 if fields.c0_vertices is None else fields.c0_vertices
     write_evolver(path, mesh, kappa=params.kappa_helfrich, c0=c0, A=params.A, nu=params.nu,
                   form_factors=fields.form_factors, volume=volume, title=title)
-    log.info("step %d of %s written to %s", step, run.path, path)
     return path
 
 

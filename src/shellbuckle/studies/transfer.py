@@ -127,8 +127,8 @@ def check_same_shell(source, target) -> None:
     convention and the rest), the same spontaneous curvature, and the same shape imperfection
     (amplitude, and with one its degree and the seed that draws it); and unless both hold
     gamma and c0 fixed (a run along a gamma or c0 path changes them from step to step)."""
-    from ..protocol.spec import PARAMETER_CONTROLS
     from ..protocol.imperfection import DEFAULT_DEGREE
+    from ..protocol.spec import PARAMETER_CONTROLS
     from ..store.view import Run
 
     a, b = Run.of(source).store, Run.of(target).store
@@ -181,3 +181,96 @@ def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferr
     E_start = float(ctx.energy.value(X))
     result = protocol_mod._minimize(ctx, ctx.energy, X, ctx.V0 * (1.0 - dv))
     return Transferred(result.x, float(result.fun) / kappa, dv, E_start / kappa, result)
+
+
+#: Two steps hold the same volume fraction when their dV/V differ by less than this.
+SAME_VOLUME = 1e-6
+
+
+class State(NamedTuple):
+    """One conformation of a comparison: ``E_over_kappa``, its class ``shape`` and ``W``
+    (:func:`~shellbuckle.analysis.classify.classify`), and where it comes from (``what``)."""
+
+    what: str
+    E_over_kappa: float
+    shape: str
+    W: int
+
+
+class Comparison(NamedTuple):
+    """A step carried to another mesh (:func:`compare`): the source's step ``source``, the
+    carried start (``start_E_over_kappa``), the relaxed ``carried`` state and whether its
+    minimization converged to a certified minimum (``certified``: converged with inertia 0),
+    and the target run's own step at the same volume fraction (``own``, None if it has none);
+    ``relative`` is ``carried.E / own.E - 1`` (NaN without ``own``); ``transferred`` holds the
+    relaxed positions (:class:`Transferred`); ``source_path`` and ``target_path`` the runs."""
+
+    source_path: str
+    target_path: str
+    dV_over_V: float
+    source: State
+    start_E_over_kappa: float
+    carried: State
+    certified: bool
+    own: State | None
+    relative: float
+    transferred: Transferred
+
+    def as_dict(self) -> dict:
+        """The numbers as plain values (JSON)."""
+        def state(s):
+            return None if s is None else s._asdict()
+
+        return {"source_path": self.source_path, "target_path": self.target_path,
+                "dV_over_V": self.dV_over_V, "source": state(self.source),
+                "start_E_over_kappa": self.start_E_over_kappa, "carried": state(self.carried),
+                "certified": self.certified, "own": state(self.own),
+                "relative": self.relative,
+                "message": self.transferred.result.message}
+
+
+def own_step(target, dV_over_V: float) -> int | None:
+    """The stored step of the run ``target`` at the volume fraction ``dV_over_V`` (within
+    :data:`SAME_VOLUME`), or None."""
+    from ..store.view import Run
+
+    store = Run.of(target).store
+    for k in store.steps:
+        dv = float(store.record(k)["dV_over_V"])
+        if abs(dv - dV_over_V) < SAME_VOLUME:
+            return k
+    return None
+
+
+def compare(source, step: int, target, *, threads: int | None = 1) -> Comparison:
+    """Step ``step`` of ``source`` carried to the mesh of ``target`` and relaxed there
+    (:func:`transfer`), beside the source's step and the target's own step at the same volume
+    fraction: their energies and classes. The carried minimum and the target's own are the
+    same state where their energies agree to the minimization's tolerance and their classes
+    agree; a carried state of another class, or of the same class and a higher energy, is a
+    state of the source's mesh that the target's mesh does not hold (module docstring)."""
+    from ..analysis.classify import classify
+    from ..store.view import Run
+
+    source, target = Run.of(source), Run.of(target)
+    k = source.step(step)
+    moved = transfer(source, k, target, threads=threads)
+
+    def state(what, X, faces, E):
+        c = classify(X, faces)
+        return State(what, float(E), c.shape, int(c.W))
+
+    n, m = source.store.n_vertices, target.store.n_vertices
+    src = state(f"source's step {k} ({n} vertices)", source.positions(k), source.store.faces,
+                source.store.record(k)["E_over_kappa"])
+    carried = state(f"carried, minimum ({m} vertices)", moved.X, target.store.faces,
+                    moved.E_over_kappa)
+    result = moved.result
+    certified = bool(result.success) and result.inertia == 0
+    j = own_step(target, moved.dV_over_V)
+    own = None if j is None else state(f"target's own step {j} ({m} vertices)",
+                                       target.positions(j), target.store.faces,
+                                       target.store.record(j)["E_over_kappa"])
+    relative = math.nan if own is None else carried.E_over_kappa / own.E_over_kappa - 1.0
+    return Comparison(str(source.path), str(target.path), moved.dV_over_V, src, moved.E_start_over_kappa, carried, certified, own,
+                      relative, moved)
