@@ -15,10 +15,11 @@ from shellbuckle.analysis.collect import collect_runs, threshold_points
 from shellbuckle.analysis.events import events, thresholds
 from shellbuckle.cli import main
 from shellbuckle import locate as locate_mod
-from shellbuckle.locate import _context, _eigenvalue_zero, _old_branch, located, locate
+from shellbuckle.locate import _eigenvalue_zero, _old_branch, located, locate
 from shellbuckle.mesh import icosphere
 from shellbuckle.params import ShellParameters
 from shellbuckle.protocol import deflate as protocol_mod
+from shellbuckle.protocol.stored import stored_context
 from shellbuckle.run import deflate
 from shellbuckle.solve.gauge import free_dofs
 from shellbuckle.solve.spectrum import lowest_eigenvalues, multiplier
@@ -149,7 +150,7 @@ def test_the_bisection_is_the_step_from_the_stored_step(runs):
     p = located(run)["primary_buckling"]
     k = p["step"]
     table = run.table.set_index("step")
-    ctx = _context(run, 1)
+    ctx = stored_context(run, 1)
     start = (run.positions(k - 1), run.store.record(k - 1))
 
     def step_to(v):

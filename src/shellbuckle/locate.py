@@ -61,11 +61,9 @@ import numpy as np
 
 from .analysis.classify import ANALYSIS_VERSION, analyze_run, classify, is_current
 from .analysis.events import events as run_events
-from .mesh.mesh import Mesh
-from .params import ShellParameters
 from .protocol import deflate as protocol_mod
-from .protocol.deflate import LeftDomain, Protocol
-from .protocol.stored import init_stored
+from .protocol.deflate import LeftDomain
+from .protocol.stored import stored_context
 from .solve.spectrum import lowest_eigenvalues
 from .store.located import LOCATE_TOL, read_located, write_located
 from .store.view import Run
@@ -155,7 +153,7 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
             todo.append(event)
     if not todo:
         return out
-    ctx = _context(run, threads)
+    ctx = stored_context(run, threads)
     for event in sorted(todo, key=lambda e: e.step):
         point = _locate_event(ctx, run, event, tol)
         write_located(run.path, {event.name: point})
@@ -188,7 +186,7 @@ class StepFromStored:
                              f"({len(self.run.protocol.schedule)} steps)")
         self.k = k
         self.start = (self.run.positions(k - 1), self.run.store.record(k - 1))
-        self.ctx = _context(self.run, threads) if ctx is None else ctx
+        self.ctx = stored_context(self.run, threads) if ctx is None else ctx
 
     def __call__(self, dV_over_V: float, *, jiggle: bool = True, start=None):
         protocol = self.ctx.protocol
@@ -211,14 +209,6 @@ class StepFromStored:
 def located(run_or_path) -> dict[str, dict]:
     """The located points stored with a run, ``{name: point}`` (empty if none)."""
     return read_located(Run.of(run_or_path).path)
-
-
-def _context(run: Run, threads):
-    store = run.store
-    mesh = Mesh.from_arrays(store.X0, store.faces)
-    ctx, _ = init_stored(store, mesh, ShellParameters.from_dict(store.params),
-                         Protocol.from_dict(store.protocol), threads)
-    return ctx
 
 
 def _side(ctx, X, record: dict, shape: str, lowest: float | None = None) -> dict:

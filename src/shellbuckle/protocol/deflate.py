@@ -326,6 +326,16 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                     max_iter=p.max_iter, **options)
 
 
+
+def minimize_at_volume(ctx: Context, X: np.ndarray, V_target: float):
+    """``X`` minimized at the volume ``V_target`` with the run's energy by the protocol's
+    minimizer (its method and tolerance; Newton's method certifies the minimum), without the
+    step's jiggle and zero-curvature cycle: a conformation that did not come from the run's
+    own path, e.g. one carried from another mesh (:mod:`shellbuckle.studies.transfer`).
+    Returns the minimizer's :class:`~shellbuckle.solve.result.MinimizeResult`."""
+    return _minimize(ctx, ctx.energy, np.asarray(X, dtype=float), V_target)
+
+
 MAX_VOLUME_RATIO = 8.0
 """The largest enclosed volume of the physical domain, in units of the reference volume V0:
 the reference sphere of twice the radius (a linear strain of 100 %, far outside thin-shell

@@ -39,3 +39,18 @@ def init_stored(store, mesh, params, protocol, threads: int | None):
     return protocol_mod.init(mesh, params, protocol, form_factors=store.rest.get("form_factors"),
                              threads=1 if mode == "plain" else threads,
                              reproducible=mode == "reproducible")
+
+
+def stored_context(run, threads: int | None = None):
+    """The protocol's context (:func:`.deflate.init`) of a stored run (a
+    :class:`~shellbuckle.store.view.Run`): its reference mesh, parameters, protocol, rest state
+    and PARDISO mode (:func:`init_stored`)."""
+    from ..mesh.mesh import Mesh
+    from ..params import ShellParameters
+    from .spec import Protocol
+
+    store = run.store
+    mesh = Mesh.from_arrays(store.X0, store.faces)
+    ctx, _ = init_stored(store, mesh, ShellParameters.from_dict(store.params),
+                         Protocol.from_dict(store.protocol), threads)
+    return ctx

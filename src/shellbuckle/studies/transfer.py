@@ -163,9 +163,9 @@ def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferr
     folder) carried to the mesh of the run ``target`` of the same shell
     (:func:`check_same_shell`) and minimized there at the source step's volume fraction with
     the target's energy (module docstring). ``threads``: PARDISO's, as for a run."""
-    from ..locate import _context
-    from ..protocol import deflate as protocol_mod
+    from ..protocol.deflate import minimize_at_volume
     from ..protocol.imperfection import reference_directions
+    from ..protocol.stored import stored_context
     from ..store.view import Run
 
     source, target = Run.of(source), Run.of(target)
@@ -176,10 +176,10 @@ def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferr
         raise ValueError(f"step {step} of {source.path} has no finite volume fraction")
     X = material_interpolation(source.store.X0, source.store.faces, source.positions(step),
                                reference_directions(target.store.X0))
-    ctx = _context(target, threads)
+    ctx = stored_context(target, threads)
     kappa = float(ctx.params.kappa)
     E_start = float(ctx.energy.value(X))
-    result = protocol_mod._minimize(ctx, ctx.energy, X, ctx.V0 * (1.0 - dv))
+    result = minimize_at_volume(ctx, X, ctx.V0 * (1.0 - dv))
     return Transferred(result.x, float(result.fun) / kappa, dv, E_start / kappa, result)
 
 
