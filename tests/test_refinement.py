@@ -8,6 +8,7 @@ run folders, and E/kappa interpolated here with NumPy from each run's table.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -429,6 +430,47 @@ def test_the_transfer_command_refuses_before_any_work(study, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and says in err
     assert not (tmp_path / "x.txt").exists()
+
+
+def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_path,
+                                                                     monkeypatch):
+    # on the sphere branch (dV/V = 0.019) the coarse step relaxes on the finest mesh to that
+    # mesh's own step: the report's carried W is the finest W, its energy 0 % above; carried
+    # states are kept and not computed again
+    import shutil
+
+    from shellbuckle.studies import transfer as transfer_module
+
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    kept = refinement.carry(out, at=0.019)
+    assert len(kept) == 1
+    (entry,) = kept.values()
+    assert entry["certified"] and abs(entry["relative"]) < 1e-9
+    assert (entry["shape"], entry["W"]) == (entry["own_shape"], entry["own_W"]) == ("sphere", 0)
+    assert json.loads((out / refinement.CARRIED_JSON).read_text())["carried"] == kept
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a kept state was carried again")
+
+    monkeypatch.setattr(transfer_module, "compare", no_work)
+    assert refinement.carry(out, at=0.019) == kept
+    runs = refinement.with_carried(refinement.collect([out]), kept, at=0.019)
+    table = refinement.refinement_table(runs)
+    w_col, e_col = refinement.carried_columns(0.019)
+    rows = table[table["quantity"] == w_col].set_index("n_vertices")
+    assert rows.loc[300, "mean"] == rows.loc[600, "mean"] == 0
+    assert rows["method"].eq("measured to the finest mesh").all()
+    dE = table[table["quantity"] == e_col].set_index("n_vertices")["mean"]
+    assert abs(dE.loc[300]) < 1e-7 and dE.loc[600] == 0
+    # the command's report reads them only at its own volume fraction (0.645 here)
+    assert cli_main(["refine", *ARGS, "--out", str(out), "--report-only"]) == 0
+    assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
+
+
+def test_refine_carry_is_not_a_report_only_option(study, capsys):
+    assert cli_main(["refine", "--out", str(study), "--report-only", "--carry"]) == 2
+    assert "--carry: allowed: without --report-only" in capsys.readouterr().err
 
 
 def test_rays_between_skinny_triangles_are_located_all_the_same():

@@ -58,6 +58,13 @@ def register(sub) -> None:
     add_number(parser, "--until", "until_deflated", "last target dV/V (default 0.95, the "
                "paper's protocol to self-contact; W is read near dV/V = 0.645)")
     add_number(parser, "--workers", "workers", "local worker processes (default: cores)")
+    parser.add_argument("--carry", action="store_true",
+                        help="also carry, per gamma and seed, each coarser mesh's step nearest "
+                             "dV/V = 0.645 to the finest mesh and relax it there (shellbuckle "
+                             "transfer): the report then says whether the coarse mesh's W is a "
+                             "state of the shell (the same W at the finest mesh's energy) or of "
+                             "its mesh; kept in DIR/carried.json, each done once (one "
+                             "minimization on the finest mesh each: minutes on 40000 vertices)")
     parser.add_argument("--report-only", action="store_true",
                         help="compute nothing: rebuild the table, figure and CSV from the "
                              "finished runs in DIR")
@@ -73,13 +80,16 @@ def _cmd(args) -> int:
     from ..studies import refinement
 
     if args.report_only:
+        if args.carry:
+            raise ValueError("--carry: allowed: without --report-only (carrying computes one "
+                             "minimization per state; the report reads what is kept)")
         _study_folder(args.out)
         table = refinement.report(args.out)
     else:
         options = _options(args)
         _out(args.out)
         table = refinement.run_study(args.out, workers=args.workers, progress=not args.quiet,
-                                     **options)
+                                     carry_states=args.carry, **options)
     out = Path(args.out)
     print(f"refinement {out}: {table.groupby(refinement.GROUP).ngroups} groups, "
           f"{table['n_vertices'].nunique()} mesh sizes")

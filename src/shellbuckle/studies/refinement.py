@@ -19,6 +19,12 @@ imperfection (:mod:`shellbuckle.protocol.imperfection`, the same field on every 
   axisymmetric, for shells whose dent is born non-axisymmetric; the dent axis's angle to the
   finest mesh's;
 
+- with :func:`carry` (``shellbuckle refine --carry``), the step of each coarser mesh nearest
+  dV/V = :data:`CARRY_AT` carried to the finest mesh of its seed and relaxed there
+  (:func:`shellbuckle.studies.transfer.compare`): its wrinkle count there and its energy
+  relative to the finest mesh's own step, i.e. whether a coarse mesh's W is a state of the
+  shell or of its mesh; kept in ``carried.json`` in the study folder;
+
 each averaged over seeds (mean, sample standard deviation with ``n - 1``, NaN for one seed),
 and per quantity a value extrapolated to h -> 0 in the mean edge ``h = sqrt(8 pi / (sqrt(3)
 (N - 2))) R`` (:func:`richardson`), with the discretization error of the paper's mesh relative
@@ -84,6 +90,11 @@ CSV, MARKDOWN, FIGURE = "refinement.csv", "refinement.md", "refinement.png"
 #: (docs/mesh-convergence.md) and sets where the shell dents, the same material point on
 #: every mesh.
 SHAPE_IN_D = 0.1
+#: The volume fraction near which :func:`carry` carries each coarse mesh's step to the finest
+#: mesh: the middle of the W window [0.53, 0.76].
+CARRY_AT = 0.645
+CARRIED_JSON = "carried.json"
+CARRIED_VERSION = 1
 
 
 def energy_column(at: float) -> str:
@@ -100,6 +111,16 @@ def angle_column(at: float) -> str:
 
 def rim_column(at: float) -> str:
     return f"rim_amplitude_at_{at:g}"
+
+
+CARRIED_W = "carried_W_at_"
+
+
+def carried_columns(at: float = CARRY_AT) -> dict[str, str]:
+    """Columns of the carried states (:func:`carry`) -> labels."""
+    return {f"{CARRIED_W}{at:g}": f"W of the state carried to the finest mesh, dV/V = {at:g}",
+            f"carried_dE_at_{at:g}": f"its E/kappa over the finest mesh's own - 1, dV/V = "
+                                     f"{at:g} (%)"}
 
 
 def quantities(energy_at=ENERGY_AT) -> dict[str, str]:
@@ -496,12 +517,16 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
     for key, group in runs.groupby(GROUP, sort=True):
         sizes = sorted(group["n_vertices"].astype(int).unique())
         group = _with_angles(group, energy_at_values)
-        for quantity, label in quantities(energy_at_values).items():
+        extra = {}  # the carried states' rows, at the volume fraction they were carried at
+        for column in group.columns:
+            if column.startswith(CARRIED_W):
+                extra |= carried_columns(float(column.removeprefix(CARRIED_W)))
+        for quantity, label in (quantities(energy_at_values) | extra).items():
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
             resolution = _resolution(group, quantity, [n for n in sizes
                                                        if math.isfinite(stats[n][0])][-2:])
-            fit = TO_FINEST if quantity.startswith("dent_angle_at_") else richardson(
+            fit = TO_FINEST if quantity.startswith(("dent_angle_at_", "carried_")) else richardson(
                 mean_edge(sizes), [stats[n][0] for n in sizes], resolution=resolution)
             paper = stats.get(PAPER_VERTICES, (math.nan,))[0]
             error = paper - fit.value
@@ -571,10 +596,12 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
               shape_imperfection: float | None = None,
               shape_imperfection_d: float | None = None, shape_degree=None,
               until: float = 0.95, workers: int | None = None, scheduler=None,
-              progress: bool = True, energy_at_values=ENERGY_AT) -> pd.DataFrame:
+              progress: bool = True, energy_at_values=ENERGY_AT,
+              carry_states: bool = False) -> pd.DataFrame:
     """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
-    finished are skipped), then write its report (:func:`write_report`) from the runs of this
-    spec; returns the refinement table."""
+    finished are skipped), with ``carry_states`` carry each coarse mesh's state near
+    :data:`CARRY_AT` to the finest mesh (:func:`carry`), then write its report
+    (:func:`write_report`) from the runs of this spec; returns the refinement table."""
     from ..sweep import run_sweep
 
     spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
@@ -582,8 +609,10 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
                       shape_imperfection_d=shape_imperfection_d, shape_degree=shape_degree,
                       until=until)
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
-    folders = [Path(out) / p["name"] for p in spec.points()]
-    return report(out, [f for f in folders if f.exists()], energy_at_values=energy_at_values)
+    folders = [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
+    if carry_states:
+        carry(out, folders, progress=progress)
+    return report(out, folders, energy_at_values=energy_at_values)
 
 
 def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
@@ -594,9 +623,131 @@ def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     paths = [out] if paths is None else list(paths)
     runs = collect(paths, energy_at_values) if paths else pd.DataFrame(
         columns=[*GROUP, "n_vertices", *quantities(energy_at_values)])
+    runs = with_carried(runs, read_carried(out))
     table = refinement_table(runs, energy_at_values)
     write_report(table, out, n_runs=len(runs))
     return table
+
+
+# --------------------------------------------------------------------------- carried states
+
+def _carry_key(source: str, step: int, target: str) -> str:
+    return f"{source} {step} -> {target}"
+
+
+def read_carried(out) -> dict:
+    """The carried states kept in the study folder ``out`` (:data:`CARRIED_JSON`): ``{key:
+    entry}``, empty if there are none (or the file is of another version)."""
+    import json
+
+    path = Path(out) / CARRIED_JSON
+    if not path.is_file():
+        return {}
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if data.get("version") != CARRIED_VERSION:
+        return {}
+    return dict(data.get("carried", {}))
+
+
+def _write_carried(out, carried: dict) -> None:
+    import json
+
+    from ..store.atomic import atomic_write_bytes
+    from ..util import json_safe
+
+    text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}), indent=1)
+    atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
+
+
+def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
+    """The (source folder, step, finest folder) of :func:`carry`: per group and seed, each
+    coarser mesh's run, its stored step nearest dV/V = ``at``, and the finest mesh's run of
+    the same seed (which holds a step at that step's dV/V; pairs without one are left out)."""
+    from ..store.run import RunStore
+    from .transfer import own_step
+
+    pairs = []
+    for _, group in runs.groupby([*GROUP, "seed"], sort=True):
+        finest = group.loc[group["n_vertices"] == group["n_vertices"].max(), "path"]
+        if len(finest) != 1 or len(group) < 2:
+            continue
+        target = str(finest.iloc[0])
+        for path in group.loc[group["n_vertices"] < group["n_vertices"].max(), "path"]:
+            store = RunStore.open(path)
+            steps = [k for k in store.steps if k > 0]
+            if not steps:
+                continue
+            dv = {k: float(store.record(k)["dV_over_V"]) for k in steps}
+            k = min(steps, key=lambda j: abs(dv[j] - at))
+            if own_step(target, dv[k]) is not None:
+                pairs.append((str(path), k, target))
+    return pairs
+
+
+def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
+          progress: bool = False) -> dict:
+    """Carry, per group and seed, each coarser mesh's step nearest dV/V = ``at`` to the finest
+    mesh (:func:`carry_pairs`, :func:`shellbuckle.studies.transfer.compare`) and keep what it
+    gives in ``out``/:data:`CARRIED_JSON`, each pair written as soon as it is done (a pair
+    already kept is not computed again): the carried state's class and W on the finest mesh,
+    its energy and that of the finest mesh's own step, their relative difference, whether it
+    relaxed to a certified minimum. ``paths``: the runs (default every run of the sweep folder
+    ``out``). Returns every kept entry."""
+    from .transfer import compare
+
+    runs = collect(paths if paths is not None else [out], ())
+    carried = read_carried(out)
+    pairs = [p for p in carry_pairs(runs, at)
+             if _carry_key(Path(p[0]).name, p[1], Path(p[2]).name) not in carried]
+    bar = None
+    if progress and pairs:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
+    for source, k, target in pairs:
+        c = compare(source, k, target, threads=threads)
+        carried[_carry_key(Path(source).name, k, Path(target).name)] = {
+            "dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
+            "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
+            "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
+            "relative": c.relative, "certified": c.certified, "at": at}
+        _write_carried(out, carried)
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.close()
+    return carried
+
+
+def with_carried(runs: pd.DataFrame, carried: dict, at: float = CARRY_AT) -> pd.DataFrame:
+    """``runs`` with the columns of :func:`carried_columns` where ``carried`` (of
+    :func:`read_carried`) has entries for them: a coarse run, the W of its state carried to
+    the finest mesh and the relative energy there in percent (NaN where the carried state is
+    no certified minimum); the finest run, its own W and 0. Without entries, ``runs``
+    unchanged."""
+    if not carried or runs.empty:
+        return runs
+    w_col, e_col = carried_columns(at)
+    names = {Path(p).name: i for i, p in zip(runs.index, runs["path"])}
+    W = np.full(len(runs), np.nan)
+    dE = np.full(len(runs), np.nan)
+    position = {i: j for j, i in enumerate(runs.index)}
+    for key, entry in carried.items():
+        source, _, target = key.partition(" -> ")
+        source = source.rsplit(" ", 1)[0]
+        if source not in names or target not in names:
+            continue
+        if entry.get("at") != at:
+            continue  # carried near another volume fraction
+        i, j = position[names[source]], position[names[target]]
+        if entry.get("certified"):
+            W[i], dE[i] = entry["W"], 100.0 * float(entry["relative"])
+        W[j], dE[j] = entry["own_W"], 0.0
+    if np.isnan(W).all():
+        return runs
+    runs = runs.copy()
+    runs[w_col], runs[e_col] = W, dE
+    return runs
 
 
 # --------------------------------------------------------------------------- the report
