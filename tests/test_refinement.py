@@ -468,6 +468,31 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
     assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
 
 
+def test_a_failed_carry_is_kept_as_failed_reported_as_no_value_and_tried_again(study, tmp_path,
+                                                                                monkeypatch):
+    import shutil
+
+    from shellbuckle.protocol.deflate import LeftDomain
+    from shellbuckle.studies import transfer as transfer_module
+
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    real = transfer_module.compare
+
+    def fails(*args, **kwargs):
+        raise LeftDomain(1, "a face flipped over (test)")
+
+    monkeypatch.setattr(transfer_module, "compare", fails)
+    (entry,) = refinement.carry(out, at=0.019).values()
+    assert "LeftDomain" in entry["failed"] and not entry["certified"]
+    runs = refinement.with_carried(refinement.collect([out]), refinement.read_carried(out),
+                                   at=0.019)
+    assert refinement.carried_columns(0.019).keys().isdisjoint(runs.columns)
+    monkeypatch.setattr(transfer_module, "compare", real)
+    (entry,) = refinement.carry(out, at=0.019).values()
+    assert entry["certified"] and "failed" not in entry
+
+
 def test_refine_carry_is_not_a_report_only_option(study, capsys):
     assert cli_main(["refine", "--out", str(study), "--report-only", "--carry"]) == 2
     assert "--carry: allowed: without --report-only" in capsys.readouterr().err

@@ -37,6 +37,7 @@ Reference for the protocol: Quilliet et al., Eur. Phys. J. E 27, 13 (2008), §4.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from pathlib import Path
 
@@ -44,8 +45,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..util import interrupt_of
+
 if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
     import pandas as pd
+
+log = logging.getLogger(__name__)
 
 #: The issue's three gamma labels and its two readings of the bending energy.
 GAMMAS = (2333.0, 15163.0, 29160.0)
@@ -691,22 +696,34 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     gives in ``out``/:data:`CARRIED_JSON`, each pair written as soon as it is done (a pair
     already kept is not computed again): the carried state's class and W on the finest mesh,
     its energy and that of the finest mesh's own step, their relative difference, whether it
-    relaxed to a certified minimum. ``paths``: the runs (default every run of the sweep folder
+    relaxed to a certified minimum; a relaxation that fails (it left the physical domain) is
+    kept as ``failed`` with its reason, reported as no value, and tried again by the next call. ``paths``: the runs (default every run of the sweep folder
     ``out``). Returns every kept entry."""
     from .transfer import compare
 
     runs = collect(paths if paths is not None else [out], ())
     carried = read_carried(out)
-    pairs = [p for p in carry_pairs(runs, at)
-             if _carry_key(Path(p[0]).name, p[1], Path(p[2]).name) not in carried]
+    pairs = [p for p in carry_pairs(runs, at)  # those not kept, or kept as failed
+             if "failed" in carried.get(_carry_key(Path(p[0]).name, p[1], Path(p[2]).name),
+                                        {"failed": ""})]
     bar = None
     if progress and pairs:
         from tqdm import tqdm
 
         bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
     for source, k, target in pairs:
-        c = compare(source, k, target, threads=threads)
-        carried[_carry_key(Path(source).name, k, Path(target).name)] = {
+        key = _carry_key(Path(source).name, k, Path(target).name)
+        try:
+            c = compare(source, k, target, threads=threads)
+        except Exception as exc:  # a failed relaxation is kept as such, the others go on
+            if interrupt_of(exc) is not None:
+                raise
+            log.warning("carrying %s failed: %s: %s", key, type(exc).__name__, exc)
+            carried[key] = {"failed": f"{type(exc).__name__}: {exc}", "certified": False,
+                            "at": at}
+            _write_carried(out, carried)
+            continue
+        carried[key] = {
             "dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
             "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
             "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
@@ -739,6 +756,8 @@ def with_carried(runs: pd.DataFrame, carried: dict, at: float = CARRY_AT) -> pd.
             continue
         if entry.get("at") != at:
             continue  # carried near another volume fraction
+        if "failed" in entry:
+            continue
         i, j = position[names[source]], position[names[target]]
         if entry.get("certified"):
             W[i], dE[i] = entry["W"], 100.0 * float(entry["relative"])
