@@ -697,8 +697,9 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     already kept is not computed again): the carried state's class and W on the finest mesh,
     its energy and that of the finest mesh's own step, their relative difference, whether it
     relaxed to a certified minimum; a relaxation that fails (it left the physical domain) is
-    kept as ``failed`` with its reason, reported as no value, and tried again by the next call. ``paths``: the runs (default every run of the sweep folder
-    ``out``). Returns every kept entry."""
+    kept as ``failed`` with its reason, reported as no value, and tried again by the next
+    call. ``paths``: the runs (default every run of the sweep folder ``out``). Returns every
+    kept entry."""
     from .transfer import compare
 
     runs = collect(paths if paths is not None else [out], ())
