@@ -455,7 +455,7 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
 
     monkeypatch.setattr(transfer_module, "compare", no_work)
     assert refinement.carry(out, at=0.019) == kept
-    runs = refinement.with_carried(refinement.collect([out]), kept, at=0.019)
+    runs = refinement.with_carried(refinement.collect([out]), kept, out, at=0.019)
     table = refinement.refinement_table(runs)
     w_col, e_col = refinement.carried_columns(0.019)
     rows = table[table["quantity"] == w_col].set_index("n_vertices")
@@ -486,11 +486,40 @@ def test_a_failed_carry_is_kept_as_failed_reported_as_no_value_and_tried_again(s
     (entry,) = refinement.carry(out, at=0.019).values()
     assert "LeftDomain" in entry["failed"] and not entry["certified"]
     runs = refinement.with_carried(refinement.collect([out]), refinement.read_carried(out),
-                                   at=0.019)
+                                   out, at=0.019)
     assert refinement.carried_columns(0.019).keys().isdisjoint(runs.columns)
     monkeypatch.setattr(transfer_module, "compare", real)
     (entry,) = refinement.carry(out, at=0.019).values()
     assert entry["certified"] and "failed" not in entry
+
+
+def test_only_steps_near_the_volume_fraction_are_carried_and_only_to_the_finest_mesh(study):
+    # the study ends at dV/V = 0.3: no step lies within half a step of 0.645
+    runs = refinement.collect([study])
+    assert refinement.carry_pairs(runs, 0.645) == []
+    ((source, k, target),) = refinement.carry_pairs(runs, 0.2)
+    assert Run.open(source).store.n_vertices == 300 and Run.open(target).store.n_vertices == 600
+    assert Run.open(source).store.record(k)["dV_over_V"] == pytest.approx(0.2, abs=0.0095)
+    # a seed whose finest-mesh run is missing has no target, not the next-coarser mesh
+    fake = pd.DataFrame({**{c: [runs[c].iloc[0]] * 3 for c in refinement.GROUP},
+                         "seed": [0, 0, 1], "n_vertices": [300, 600, 300],
+                         "path": ["a", "b", "c"]})
+    assert refinement._finest_runs(fake) == {(*fake.loc[0, refinement.GROUP], 0): "b"}
+
+
+def test_a_damaged_record_of_carried_states_is_never_written_over(study, tmp_path, caplog):
+    import shutil
+
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    for text in ("{\"version\": 1, \"carr", "[1, 2]", '{"version": 99, "carried": {}}'):
+        (out / refinement.CARRIED_JSON).write_text(text)
+        with pytest.raises(RuntimeError, match="carried.json: .*move it away"):
+            refinement.carry(out, at=0.019)
+        assert (out / refinement.CARRIED_JSON).read_text() == text
+        caplog.clear()
+        assert refinement.read_carried(out) == {}  # the report goes on without them
+        assert "left out of the report" in caplog.text
 
 
 def test_refine_carry_is_not_a_report_only_option(study, capsys):

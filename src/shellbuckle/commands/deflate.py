@@ -151,8 +151,8 @@ def _protocol(args) -> dict:
 def _check_smooth_options(args, options: dict) -> None:
     """The smooth imperfection (``--smooth-jiggle`` or ``--smooth-jiggle-d``, and
     ``--smooth-degree``) replaces the per-vertex jiggle: one amplitude, without
-    ``--temperature`` or ``--jiggle`` (which are not given together either); the shape imperfection likewise takes one amplitude;
-    a degree only with an amplitude."""
+    ``--temperature`` or ``--jiggle`` (which are not given together either); the shape
+    imperfection likewise takes one amplitude; a degree only with an amplitude."""
     if "jiggle" in options and "temperature" in options:
         raise ValueError(f"--jiggle {typed(args, '--jiggle', options['jiggle'])}: allowed: "
                          "without --temperature (two scales of the same per-vertex jiggle: "

@@ -21,7 +21,9 @@ def register(sub) -> None:
                     "at the same dV/V, with the carried minimum's energy relative to it. A "
                     "state of the shell relaxes to the same class at the target's energy; a "
                     "state of the source's mesh only relaxes to another class, or lies above "
-                    "(docs/mesh-convergence.md). Nothing is written to either run.")
+                    "(docs/mesh-convergence.md). Nothing is written to either run. Exit "
+                    "status 1 if a carried state does not relax to a certified minimum (which "
+                    "needs TARGET's minimizer to be Newton's method, the default).")
     parser.add_argument("source", metavar="SOURCE", help="run folder of the step to carry")
     parser.add_argument("target", metavar="TARGET", help="run folder of the mesh to carry it to")
     add_number(parser, "--step", "step", "step of SOURCE (negative counts from the last; "

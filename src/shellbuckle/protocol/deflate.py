@@ -326,7 +326,6 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                     max_iter=p.max_iter, **options)
 
 
-
 def minimize_at_volume(ctx: Context, X: np.ndarray, V_target: float):
     """``X`` minimized at the volume ``V_target`` with the run's energy by the protocol's
     minimizer (its method and tolerance; Newton's method certifies the minimum), without the

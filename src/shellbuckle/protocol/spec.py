@@ -75,11 +75,12 @@ class Protocol:
     runs stored before this option existed resume without it. ``direct_return``: the
     minimization back at the step's c0 after the zero-curvature cycle starts at the minimum
     before the cycle when the energy falls all along the straight path there from the flat
-    minimum (:func:`downhill_path`; else it starts at the flat minimum); runs stored before
-    this option existed resume without it. ``relax_imperfection``: a jiggled start is relaxed
-    however small the jiggle is against the mesh (:func:`_minimize`); runs stored before this
-    option existed resume without it (a start closer than 0.3 mean edges to the step's start
-    then takes quasi-Newton steps on the Hessian there, as they were made).
+    minimum (:func:`~shellbuckle.protocol.deflate.downhill_path`; else it starts at the flat
+    minimum); runs stored before this option existed resume without it.
+    ``relax_imperfection``: a jiggled start is relaxed however small the jiggle is against the
+    mesh (the minimizations of :func:`~shellbuckle.protocol.deflate.step`); runs stored before
+    this option existed resume without it (a start closer than 0.3 mean edges to the step's
+    start then takes quasi-Newton steps on the Hessian there, as they were made).
     ``shape_imperfection`` (a fraction of R) makes the shell itself imperfect, once for the
     whole run and whatever the jiggle: its stress-free shape is the reference sphere with
     each material point moved radially by ``shape_imperfection R f(n)``, ``f`` a field of

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
-from ..protocol.deflate import Protocol
+from ..protocol.spec import Protocol
 from .run import RunStore, _span
 
 

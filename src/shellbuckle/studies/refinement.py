@@ -350,8 +350,8 @@ class Extrapolation:
     three that are not monotone, or a fitted order outside [:data:`MIN_ORDER`,
     :data:`MAX_ORDER`]), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
     ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one),
-    ``to the finest`` (value NaN: an angle measured to the finest mesh, nothing to
-    extrapolate)."""
+    ``to the finest`` (value NaN: an angle measured to the finest mesh, or a state carried to
+    it, nothing to extrapolate)."""
 
     value: float
     order: float
@@ -628,7 +628,7 @@ def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     paths = [out] if paths is None else list(paths)
     runs = collect(paths, energy_at_values) if paths else pd.DataFrame(
         columns=[*GROUP, "n_vertices", *quantities(energy_at_values)])
-    runs = with_carried(runs, read_carried(out))
+    runs = with_carried(runs, read_carried(out), out)
     table = refinement_table(runs, energy_at_values)
     write_report(table, out, n_runs=len(runs))
     return table
@@ -636,22 +636,41 @@ def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- carried states
 
-def _carry_key(source: str, step: int, target: str) -> str:
-    return f"{source} {step} -> {target}"
+def _name(path, out) -> str:
+    """How a run is named in :data:`CARRIED_JSON`: its folder relative to the study folder
+    ``out`` when it lies in it, else its absolute path."""
+    path, out = Path(path).resolve(), Path(out).resolve()
+    return str(path.relative_to(out)) if path.is_relative_to(out) else str(path)
 
 
-def read_carried(out) -> dict:
+def _carry_key(source: str, step: int, target: str, at: float) -> str:
+    return f"{source} {step} -> {target} at {at:g}"
+
+
+def read_carried(out, *, strict: bool = False) -> dict:
     """The carried states kept in the study folder ``out`` (:data:`CARRIED_JSON`): ``{key:
-    entry}``, empty if there are none (or the file is of another version)."""
+    entry}``, empty if there are none. A file that cannot be read, or of another version, is
+    a ``RuntimeError`` naming it with ``strict`` (:func:`carry` does not write over it), else
+    a warning and no entries (the report goes on without them)."""
     import json
 
     path = Path(out) / CARRIED_JSON
     if not path.is_file():
         return {}
-    data = json.loads(path.read_text(encoding="utf-8"))
-    if data.get("version") != CARRIED_VERSION:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(data, dict) or not isinstance(data.get("carried"), dict):
+            raise ValueError("not a record of carried states")
+        if data.get("version") != CARRIED_VERSION:
+            raise ValueError(f"version {data.get('version')!r}, this version reads "
+                             f"{CARRIED_VERSION}")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        why = f"{path}: {exc}"
+        if strict:
+            raise RuntimeError(f"{why}; move it away to carry the states again") from None
+        log.warning("%s: the carried states are left out of the report", why)
         return {}
-    return dict(data.get("carried", {}))
+    return dict(data["carried"])
 
 
 def _write_carried(out, carried: dict) -> None:
@@ -664,28 +683,50 @@ def _write_carried(out, carried: dict) -> None:
     atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
 
 
+def _finest_runs(runs: pd.DataFrame) -> dict:
+    """Per group and seed, the path of the run on the group's finest mesh (over all seeds;
+    a seed without a finished run there has none)."""
+    finest = {}
+    for key, group in runs.groupby(GROUP, sort=True):
+        top = group[group["n_vertices"] == group["n_vertices"].max()]
+        for seed, rows in top.groupby("seed"):
+            if len(rows) == 1:
+                finest[(*key, seed)] = str(rows["path"].iloc[0])
+    return finest
+
+
+def _step_near(store, at: float) -> int | None:
+    """The stored step of ``store`` nearest dV/V = ``at``, if within half a step of its
+    schedule (the widest spacing of its stored dV/V); else None."""
+    steps = [k for k in store.steps if k > 0]
+    dv = np.array([float(store.record(k)["dV_over_V"]) for k in steps])
+    ok = np.isfinite(dv)
+    if ok.sum() < 2:
+        return None
+    steps, dv = [k for k, good in zip(steps, ok) if good], dv[ok]
+    i = int(np.argmin(np.abs(dv - at)))
+    spacing = float(np.max(np.diff(np.sort(np.concatenate([[0.0], dv])))))
+    return steps[i] if abs(dv[i] - at) <= 0.5 * spacing + 1e-12 else None
+
+
 def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
     """The (source folder, step, finest folder) of :func:`carry`: per group and seed, each
-    coarser mesh's run, its stored step nearest dV/V = ``at``, and the finest mesh's run of
-    the same seed (which holds a step at that step's dV/V; pairs without one are left out)."""
+    coarser mesh's run, its stored step nearest dV/V = ``at`` (within half a step: a run that
+    ended before has none), and the run of the same seed on the group's finest mesh, which
+    holds a step at that step's dV/V (pairs without one are left out)."""
     from ..store.run import RunStore
     from .transfer import own_step
 
     pairs = []
-    for _, group in runs.groupby([*GROUP, "seed"], sort=True):
-        finest = group.loc[group["n_vertices"] == group["n_vertices"].max(), "path"]
-        if len(finest) != 1 or len(group) < 2:
+    finest = _finest_runs(runs)
+    for _, row in runs.iterrows():
+        target = finest.get((*(row[c] for c in GROUP), row["seed"]))
+        if target is None or str(row["path"]) == target:
             continue
-        target = str(finest.iloc[0])
-        for path in group.loc[group["n_vertices"] < group["n_vertices"].max(), "path"]:
-            store = RunStore.open(path)
-            steps = [k for k in store.steps if k > 0]
-            if not steps:
-                continue
-            dv = {k: float(store.record(k)["dV_over_V"]) for k in steps}
-            k = min(steps, key=lambda j: abs(dv[j] - at))
-            if own_step(target, dv[k]) is not None:
-                pairs.append((str(path), k, target))
+        store = RunStore.open(row["path"])
+        k = _step_near(store, at)
+        if k is not None and own_step(target, float(store.record(k)["dV_over_V"])) is not None:
+            pairs.append((str(row["path"]), k, target))
     return pairs
 
 
@@ -702,33 +743,37 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     kept entry."""
     from .transfer import compare
 
-    runs = collect(paths if paths is not None else [out], ())
-    carried = read_carried(out)
-    pairs = [p for p in carry_pairs(runs, at)  # those not kept, or kept as failed
-             if "failed" in carried.get(_carry_key(Path(p[0]).name, p[1], Path(p[2]).name),
-                                        {"failed": ""})]
+    carried = read_carried(out, strict=True)
+    paths = [out] if paths is None else list(paths)
+    if not paths:
+        return carried
+    pairs = [p for p in carry_pairs(collect(paths, ()), at)  # not kept, or kept as failed
+             if "failed" in carried.get(_carry_key(_name(p[0], out), p[1], _name(p[2], out),
+                                                   at), {"failed": ""})]
     bar = None
     if progress and pairs:
         from tqdm import tqdm
 
         bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
     for source, k, target in pairs:
-        key = _carry_key(Path(source).name, k, Path(target).name)
+        names = {"source": _name(source, out), "step": k, "target": _name(target, out),
+                 "at": at}
+        key = _carry_key(names["source"], k, names["target"], at)
         try:
             c = compare(source, k, target, threads=threads)
         except Exception as exc:  # a failed relaxation is kept as such, the others go on
             if interrupt_of(exc) is not None:
                 raise
             log.warning("carrying %s failed: %s: %s", key, type(exc).__name__, exc)
-            carried[key] = {"failed": f"{type(exc).__name__}: {exc}", "certified": False,
-                            "at": at}
+            carried[key] = names | {"failed": f"{type(exc).__name__}: {exc}",
+                                    "certified": False}
             _write_carried(out, carried)
             continue
-        carried[key] = {
+        carried[key] = names | {
             "dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
             "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
             "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
-            "relative": c.relative, "certified": c.certified, "at": at}
+            "relative": c.relative, "certified": c.certified}
         _write_carried(out, carried)
         if bar is not None:
             bar.update()
@@ -737,31 +782,29 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     return carried
 
 
-def with_carried(runs: pd.DataFrame, carried: dict, at: float = CARRY_AT) -> pd.DataFrame:
-    """``runs`` with the columns of :func:`carried_columns` where ``carried`` (of
-    :func:`read_carried`) has entries for them: a coarse run, the W of its state carried to
-    the finest mesh and the relative energy there in percent (NaN where the carried state is
-    no certified minimum); the finest run, its own W and 0. Without entries, ``runs``
-    unchanged."""
+def with_carried(runs: pd.DataFrame, carried: dict, out, at: float = CARRY_AT) -> pd.DataFrame:
+    """``runs`` with the columns of :func:`carried_columns` from the entries of ``carried``
+    (:func:`read_carried` of the study folder ``out``) carried at ``at`` from a run of
+    ``runs`` to the run of its seed on its group's finest mesh: a coarse run, the W of its
+    state carried there and the relative energy in percent (no value where the carried
+    state is no certified minimum); the finest run, its own W and 0. Without such entries,
+    ``runs`` unchanged."""
     if not carried or runs.empty:
         return runs
     w_col, e_col = carried_columns(at)
-    names = {Path(p).name: i for i, p in zip(runs.index, runs["path"])}
-    W = np.full(len(runs), np.nan)
-    dE = np.full(len(runs), np.nan)
-    position = {i: j for j, i in enumerate(runs.index)}
-    for key, entry in carried.items():
-        source, _, target = key.partition(" -> ")
-        source = source.rsplit(" ", 1)[0]
-        if source not in names or target not in names:
+    row_of = {_name(p, out): i for i, p in enumerate(runs["path"])}
+    finest = {_name(p, out) for p in _finest_runs(runs).values()}
+    W, dE = np.full(len(runs), np.nan), np.full(len(runs), np.nan)
+    for entry in carried.values():
+        source, target = entry.get("source"), entry.get("target")
+        if (entry.get("at") != at or "failed" in entry or target not in finest
+                or source not in row_of or source == target):
             continue
-        if entry.get("at") != at:
-            continue  # carried near another volume fraction
-        if "failed" in entry:
-            continue
-        i, j = position[names[source]], position[names[target]]
+        i, j = row_of[source], row_of[target]
         if entry.get("certified"):
-            W[i], dE[i] = entry["W"], 100.0 * float(entry["relative"])
+            relative = entry.get("relative")
+            W[i] = entry["W"]
+            dE[i] = math.nan if relative is None else 100.0 * float(relative)
         W[j], dE[j] = entry["own_W"], 0.0
     if np.isnan(W).all():
         return runs

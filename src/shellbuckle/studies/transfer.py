@@ -187,7 +187,7 @@ def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferr
 SAME_VOLUME = 1e-6
 
 
-class State(NamedTuple):
+class Conformation(NamedTuple):
     """One conformation of a comparison: ``E_over_kappa``, its class ``shape`` and ``W``
     (:func:`~shellbuckle.analysis.classify.classify`), and where it comes from (``what``)."""
 
@@ -200,7 +200,8 @@ class State(NamedTuple):
 class Comparison(NamedTuple):
     """A step carried to another mesh (:func:`compare`): the source's step ``source``, the
     carried start (``start_E_over_kappa``), the relaxed ``carried`` state and whether its
-    minimization converged to a certified minimum (``certified``: converged with inertia 0),
+    minimization converged to a certified minimum (``certified``: converged with inertia 0,
+    which Newton's method, the protocol's default, reports; never with ``cg`` or ``gd``),
     and the target run's own step at the same volume fraction (``own``, None if it has none);
     ``relative`` is ``carried.E / own.E - 1`` (NaN without ``own``); ``transferred`` holds the
     relaxed positions (:class:`Transferred`); ``source_path`` and ``target_path`` the runs."""
@@ -208,11 +209,11 @@ class Comparison(NamedTuple):
     source_path: str
     target_path: str
     dV_over_V: float
-    source: State
+    source: Conformation
     start_E_over_kappa: float
-    carried: State
+    carried: Conformation
     certified: bool
-    own: State | None
+    own: Conformation | None
     relative: float
     transferred: Transferred
 
@@ -258,7 +259,7 @@ def compare(source, step: int, target, *, threads: int | None = 1) -> Comparison
 
     def state(what, X, faces, E):
         c = classify(X, faces)
-        return State(what, float(E), c.shape, int(c.W))
+        return Conformation(what, float(E), c.shape, int(c.W))
 
     n, m = source.store.n_vertices, target.store.n_vertices
     src = state(f"source's step {k} ({n} vertices)", source.positions(k), source.store.faces,
@@ -272,5 +273,5 @@ def compare(source, step: int, target, *, threads: int | None = 1) -> Comparison
                                        target.positions(j), target.store.faces,
                                        target.store.record(j)["E_over_kappa"])
     relative = math.nan if own is None else carried.E_over_kappa / own.E_over_kappa - 1.0
-    return Comparison(str(source.path), str(target.path), moved.dV_over_V, src, moved.E_start_over_kappa, carried, certified, own,
-                      relative, moved)
+    return Comparison(str(source.path), str(target.path), moved.dV_over_V, src,
+                      moved.E_start_over_kappa, carried, certified, own, relative, moved)
