@@ -214,6 +214,8 @@ def test_a_deflation_without_figure_or_location_does_not_load_the_table_librarie
     ["deflate", "--shape-imperfection-d", "9"],
     ["deflate", "--help"],
     ["refine", "--shape-degree", "critic", "--out", "x"],
+    ["transfer", "no_such_run", "x"],
+    ["table", "no_such_run"],
 ])
 def test_refusals_and_help_do_not_load_the_energies_or_the_solvers(argv, tmp_path):
     # bad input is refused, and the help printed, from the options' descriptions alone

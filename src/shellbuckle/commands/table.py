@@ -52,10 +52,10 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
+    store = run_folder("DIR", args.dir).store
     from ..params import ShellParameters
     from ..store.table import table_in_units
 
-    store = run_folder("DIR", args.dir).store
     params = ShellParameters.from_dict(store.params)
     if args.units == "si" and not params.is_material:
         raise ValueError(f"--units si: the run {args.dir} has no material (--units si needs a "
