@@ -463,6 +463,10 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
     assert rows["method"].eq("measured to the finest mesh").all()
     dE = table[table["quantity"] == e_col].set_index("n_vertices")["mean"]
     assert abs(dE.loc[300]) < 1e-7 and dE.loc[600] == 0
+    # an entry applies only to a target that is the finest mesh of the runs reported
+    coarse_only = refinement.collect([out])
+    coarse_only = coarse_only[coarse_only["n_vertices"] == 300]
+    assert refinement.with_carried(coarse_only, kept, out, at=0.019) is coarse_only
     # the command's report reads them only at its own volume fraction (0.645 here)
     assert cli_main(["refine", *ARGS, "--out", str(out), "--report-only"]) == 0
     assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
