@@ -680,6 +680,7 @@ def _write_carried(out, carried: dict) -> None:
     from ..util import json_safe
 
     text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}), indent=1)
+    Path(out).mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
 
 
