@@ -16,8 +16,10 @@ jiggle and no zero-curvature cycle) (:func:`transfer`).
 A conformation that belongs to the shell relaxes to the same class, at an energy within the
 discretization error of the target's own; one that belongs to the source mesh only (a state
 the coarse mesh cannot resolve, or a metastable state of its path) relaxes to another class,
-or lies above a state of the same class the target reached by itself. Both runs must be the
-same shell: the same parameters and the same shape imperfection (amplitude, degree and seed).
+or lies above a state of the same class the target reached by itself (:func:`compare` puts
+the carried minimum, classified, beside the target's own step at the same volume fraction;
+``shellbuckle transfer`` prints it). Both runs must be the same shell: the same parameters and
+the same shape imperfection (amplitude, degree and seed).
 """
 
 from __future__ import annotations
