@@ -526,6 +526,14 @@ def test_a_damaged_record_of_carried_states_is_never_written_over(study, tmp_pat
         assert "left out of the report" in caplog.text
 
 
+def test_the_report_says_when_the_meshes_have_different_seeds(study):
+    runs = refinement.collect([study])
+    assert "Seeds differ" not in refinement.markdown(refinement.refinement_table(runs))
+    extra = runs[runs["n_vertices"] == 300].assign(seed=1)  # a second seed on one mesh only
+    text = refinement.markdown(refinement.refinement_table(pd.concat([runs, extra])))
+    assert "Seeds differ between the meshes (N = 300: 2, N = 600: 1)" in text
+
+
 def test_refine_carry_is_not_a_report_only_option(study, capsys):
     assert cli_main(["refine", "--out", str(study), "--report-only", "--carry"]) == 2
     assert "--carry: allowed: without --report-only" in capsys.readouterr().err

@@ -876,6 +876,12 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                          + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
                          + f"{first['method']} | {_error(first)} |")
         lines.append("")
+        seeds = {n: int(group.loc[group["n_vertices"] == n, "n_seeds"].max()) for n in sizes}
+        if len(set(seeds.values())) > 1:
+            lines += ["Seeds differ between the meshes (" + ", ".join(
+                f"N = {n}: {k}" for n, k in seeds.items()) + "): each column is the mean over "
+                "its own seeds, so the extrapolation mixes seed sets; compare the seeds that "
+                "every mesh has.", ""]
         born = _born_polygonal(group, sizes)
         if born:
             lines += [f"On N = {', '.join(map(str, born))} the loss of axisymmetry is the "
