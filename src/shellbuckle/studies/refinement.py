@@ -221,19 +221,31 @@ def material_dent_axis(X0: np.ndarray, X: np.ndarray) -> np.ndarray:
     return c / norm if norm > 0 else np.full(3, np.nan)
 
 
-def dent_axis_at(store, table: pd.DataFrame, at: float) -> tuple | None:
-    """:func:`material_dent_axis` at the stored step nearest to dV/V = ``at`` (within half a
-    step of the schedule; every mesh of a study has the same steps), where that step is
-    classified as dented (not ``sphere``); ``None`` otherwise."""
+def step_near(table: pd.DataFrame, at: float) -> int | None:
+    """The step of a run's ``table`` nearest dV/V = ``at``, if within half a step of its
+    schedule (the widest spacing of its finite dV/V; every mesh of a study has the same
+    steps); else None (a run that ended before, or that has fewer than two steps)."""
     dv = table["dV_over_V"].to_numpy(dtype=float)
-    if len(dv) < 2:
+    finite = np.flatnonzero(np.isfinite(dv))
+    if len(finite) < 2:
         return None
+    dv = dv[finite]
     i = int(np.argmin(np.abs(dv - at)))
     if abs(dv[i] - at) > 0.5 * float(np.max(np.diff(np.sort(dv)))):
         return None
-    if "shape" in table.columns and str(table["shape"].iloc[i]) in ("sphere", "nan", "None"):
+    return int(table["step"].iloc[finite[i]])
+
+
+def dent_axis_at(store, table: pd.DataFrame, at: float) -> tuple | None:
+    """:func:`material_dent_axis` at the stored step nearest to dV/V = ``at``
+    (:func:`step_near`), where that step is classified as dented (not ``sphere``); ``None``
+    otherwise."""
+    k = step_near(table, at)
+    if k is None:
         return None
-    k = int(table["step"].iloc[i])
+    if "shape" in table.columns and str(table.loc[table["step"] == k, "shape"].iloc[0]) in (
+            "sphere", "nan", "None"):
+        return None
     axis = material_dent_axis(store.X0, store.positions(k))
     return tuple(float(v) for v in axis) if np.isfinite(axis).all() else None
 
@@ -696,20 +708,6 @@ def _finest_runs(runs: pd.DataFrame) -> dict:
     return finest
 
 
-def _step_near(store, at: float) -> int | None:
-    """The stored step of ``store`` nearest dV/V = ``at``, if within half a step of its
-    schedule (the widest spacing of its stored dV/V); else None."""
-    steps = [k for k in store.steps if k > 0]
-    dv = np.array([float(store.record(k)["dV_over_V"]) for k in steps])
-    ok = np.isfinite(dv)
-    if ok.sum() < 2:
-        return None
-    steps, dv = [k for k, good in zip(steps, ok) if good], dv[ok]
-    i = int(np.argmin(np.abs(dv - at)))
-    spacing = float(np.max(np.diff(np.sort(np.concatenate([[0.0], dv])))))
-    return steps[i] if abs(dv[i] - at) <= 0.5 * spacing + 1e-12 else None
-
-
 def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
     """The (source folder, step, finest folder) of :func:`carry`: per group and seed, each
     coarser mesh's run, its stored step nearest dV/V = ``at`` (within half a step: a run that
@@ -724,9 +722,12 @@ def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
         target = finest.get((*(row[c] for c in GROUP), row["seed"]))
         if target is None or str(row["path"]) == target:
             continue
-        store = RunStore.open(row["path"])
-        k = _step_near(store, at)
-        if k is not None and own_step(target, float(store.record(k)["dV_over_V"])) is not None:
+        table = RunStore.open(row["path"]).table()
+        k = step_near(table, at)
+        if k is None or k == 0:  # the reference sphere is not carried
+            continue
+        dv = float(table.loc[table["step"] == k, "dV_over_V"].iloc[0])
+        if own_step(target, dv) is not None:
             pairs.append((str(row["path"]), k, target))
     return pairs
 
