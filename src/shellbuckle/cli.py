@@ -21,6 +21,8 @@ import signal
 import sys
 import threading
 
+from .util import interrupt_of
+
 
 def command_modules() -> list:
     """The modules of :mod:`shellbuckle.commands` that define a sub-command, by name (those
@@ -75,12 +77,6 @@ def _sigterm_interrupts():
         signal.signal(signal.SIGTERM, previous)
 
 
-def _interrupt_of(exc: BaseException) -> KeyboardInterrupt | None:
-    from .util import interrupt_of
-
-    return interrupt_of(exc)
-
-
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -93,7 +89,7 @@ def main(argv=None) -> int:
         with _sigterm_interrupts():
             return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as exc:
-        interrupt = _interrupt_of(exc)
+        interrupt = interrupt_of(exc)
         if interrupt is not None:
             return _interrupted(args.command, interrupt)
         print(f"shellbuckle {args.command}: error: {exc}", file=sys.stderr)
@@ -101,7 +97,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt as exc:
         return _interrupted(args.command, exc)
     except Exception as exc:  # a failure during the work, not bad input
-        interrupt = _interrupt_of(exc)
+        interrupt = interrupt_of(exc)
         if interrupt is not None:
             return _interrupted(args.command, interrupt)
         logging.getLogger("shellbuckle").debug("failure", exc_info=True)

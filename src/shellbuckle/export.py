@@ -204,14 +204,8 @@ def export_conformation(run, X, path, fmt: str | None = None, *, values: dict | 
     if X.shape != (run.store.n_vertices, 3):
         raise ValueError(f"positions of shape {X.shape} are not a conformation of the "
                          f"{run.store.n_vertices}-vertex mesh of {str(run.path)!r}")
-
-    def fields() -> dict:
-        meta = run_metadata(run)
-        meta.pop("energy_convention")
-        return meta | {k: v for k, v in (values or {}).items()}
-
     return _write(run, X, path, fmt, f"{what} on the mesh of run {Path(run.path).name}",
-                  fields)
+                  lambda: _numeric_metadata(run) | (values or {}))
 
 
 def _write(run, X: np.ndarray, path: Path, fmt: str, title: str, field_values) -> Path:
@@ -286,11 +280,18 @@ def step_metadata(run, step: int, table=None, p_c: float | None = None) -> dict:
     return out
 
 
+def _numeric_metadata(run) -> dict:
+    """:func:`run_metadata` without the convention's name (``bending_factor`` says it): the
+    run's part of a vtu file's field data."""
+    meta = run_metadata(run)
+    meta.pop("energy_convention")
+    return meta
+
+
 def field_data(run, step: int, table=None) -> dict:
     """The numeric values a single-step export carries as field data: :func:`run_metadata`
     without the convention's name (``bending_factor`` says it) and :func:`step_metadata`."""
-    meta = run_metadata(run)
-    meta.pop("energy_convention")
+    meta = _numeric_metadata(run)
     return meta | step_metadata(run, step, table, meta["p_c"])
 
 

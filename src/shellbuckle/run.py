@@ -40,7 +40,6 @@ from .util import interrupt_of
 log = logging.getLogger(__name__)
 
 
-
 def default_out(params: ShellParameters, seed: int) -> Path:
     stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
     return Path("runs") / f"gamma{params.gamma:g}_nu{params.nu:.3g}_seed{seed}_{stamp}"
