@@ -532,6 +532,42 @@ def test_the_report_says_when_the_meshes_have_different_seeds(study):
     extra = runs[runs["n_vertices"] == 300].assign(seed=1)  # a second seed on one mesh only
     text = refinement.markdown(refinement.refinement_table(pd.concat([runs, extra])))
     assert "Seeds differ between the meshes (N = 300: 2, N = 600: 1)" in text
+    assert "order 2 assumed (2 meshes), seed 0 |" in text
+
+
+def test_the_extrapolation_compares_the_seeds_that_every_mesh_has(study):
+    runs = refinement.collect([study])
+    alone = refinement.refinement_table(runs)
+    assert (alone["extrapolation_seeds"] == "0").all()
+    # a second seed on the coarse mesh only, far from the first: the columns average it, the
+    # extrapolation and the paper mesh's error are those of seed 0 alone, to the bit
+    shifted = runs[runs["n_vertices"] == 300].assign(seed=1)
+    for column in ("primary_dV_over_V", refinement.energy_column(0.1)):
+        shifted[column] = shifted[column] * 1.5
+    both = refinement.refinement_table(pd.concat([runs, shifted], ignore_index=True))
+    assert (both["extrapolation_seeds"] == "0").all()
+    key = ["quantity", "n_vertices"]
+    alone, both = alone.set_index(key).sort_index(), both.set_index(key).sort_index()
+    for column in ("extrapolated", "order", "method", "paper_mesh_value", "paper_mesh_error"):
+        pd.testing.assert_series_equal(both[column], alone[column])
+    coarse = both.loc[("primary_dV_over_V", 300)]
+    assert coarse["n_seeds"] == 2 and coarse["mean"] == pytest.approx(
+        1.25 * alone.loc[("primary_dV_over_V", 300), "mean"], rel=1e-12)
+    # the same seed on both meshes: the common seeds are both, the means those of the columns
+    again = pd.concat([runs, runs.assign(seed=1)], ignore_index=True)
+    table = refinement.refinement_table(again).set_index(key).sort_index()
+    assert (table["extrapolation_seeds"] == "0 1").all()
+    pd.testing.assert_series_equal(table["extrapolated"], alone["extrapolated"])
+    # no seed on both meshes: each mesh's own seeds, said so
+    apart = pd.concat([runs[runs["n_vertices"] == 300],
+                       runs[runs["n_vertices"] == 600].assign(seed=1)], ignore_index=True)
+    table = refinement.refinement_table(apart)
+    primary = table[table["quantity"] == "primary_dV_over_V"]
+    assert (primary["extrapolation_seeds"] == refinement.OWN_SEEDS).all()
+    assert "each mesh's own seeds (none is on every mesh)" in refinement.markdown(table)
+    pd.testing.assert_series_equal(primary["extrapolated"].reset_index(drop=True),
+                                   alone.loc["primary_dV_over_V", "extrapolated"]
+                                   .reset_index(drop=True), check_names=False)
 
 
 def test_refine_carry_is_not_a_report_only_option(study, capsys):

@@ -470,8 +470,9 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
 
 GROUP = ["energy_convention", "gamma", "nu", "imperfection"]
 COLUMNS = (*GROUP, "quantity", "label", "n_vertices", "h", "mean", "std", "n_seeds",
-           "extrapolated", "order", "method", "paper_mesh_value", "paper_mesh_error",
-           "paper_mesh_relative_error")
+           "extrapolated", "order", "method", "extrapolation_seeds", "paper_mesh_value",
+           "paper_mesh_error", "paper_mesh_relative_error")
+OWN_SEEDS = "each mesh's own"  # extrapolation_seeds where no seed has a value on every mesh
 
 
 def _spread(values: np.ndarray) -> tuple[float, float, int]:
@@ -480,6 +481,21 @@ def _spread(values: np.ndarray) -> tuple[float, float, int]:
         return math.nan, math.nan, 0
     std = float(values.std(ddof=1)) if len(values) > 1 else math.nan
     return float(values.mean()), std, len(values)
+
+
+def _compared_seeds(group: pd.DataFrame, quantity: str, sizes) -> list | None:
+    """The seeds of ``group`` with a finite ``quantity`` on every mesh of ``sizes`` that has
+    one for any seed (with a run on every mesh where none has), sorted; ``None`` where no seed
+    has (each mesh then stands for its own seeds)."""
+    values = group[["seed", "n_vertices", quantity]].dropna()
+    valued = [n for n in sizes if (values["n_vertices"] == n).any()]
+    if not valued:
+        values, valued = group, sizes
+    common = None
+    for n in valued:
+        mine = set(values.loc[values["n_vertices"] == n, "seed"].tolist())
+        common = mine if common is None else common & mine
+    return sorted(common) if common else None
 
 
 def _with_angles(group: pd.DataFrame, energy_at_values) -> pd.DataFrame:
@@ -524,8 +540,11 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
     """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
     (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
     sample std and the seeds that have it; per group and quantity the extrapolation
-    (:func:`richardson` on the means) and the paper's mesh's error ``q(3594) - q0`` (absolute,
-    and relative to ``|q0|``)."""
+    (:func:`richardson`) and the paper's mesh's error ``q(3594) - q0`` (absolute, and relative
+    to ``|q0|``), both from the means over the seeds that have the quantity on every mesh
+    (``extrapolation_seeds``, :func:`_compared_seeds`; :data:`OWN_SEEDS`, each mesh's mean
+    over its own seeds, where no seed has), so that a seed run on some meshes only does not
+    pass for a change with the mesh."""
     import pandas as pd
 
     rows = []
@@ -541,11 +560,15 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
         for quantity, label in (quantities(energy_at_values) | extra).items():
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
+            seeds = _compared_seeds(group, quantity, sizes)
+            compared = stats if seeds is None else {n: _spread(group.loc[
+                (group["n_vertices"] == n) & group["seed"].isin(seeds), quantity]
+                .to_numpy(dtype=float)) for n in sizes}
             resolution = _resolution(group, quantity, [n for n in sizes
-                                                       if math.isfinite(stats[n][0])][-2:])
+                                                       if math.isfinite(compared[n][0])][-2:])
             fit = TO_FINEST if quantity.startswith(("dent_angle_at_", "carried_")) else richardson(
-                mean_edge(sizes), [stats[n][0] for n in sizes], resolution=resolution)
-            paper = stats.get(PAPER_VERTICES, (math.nan,))[0]
+                mean_edge(sizes), [compared[n][0] for n in sizes], resolution=resolution)
+            paper = compared.get(PAPER_VERTICES, (math.nan,))[0]
             error = paper - fit.value
             relative = error / abs(fit.value) if fit.value else math.nan
             for n in sizes:
@@ -553,7 +576,8 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
                     "quantity": quantity, "label": label, "n_vertices": n,
                     "h": float(mean_edge(n)), "mean": stats[n][0], "std": stats[n][1],
                     "n_seeds": stats[n][2], "extrapolated": fit.value, "order": fit.order,
-                    "method": fit.describe(), "paper_mesh_value": paper,
+                    "method": fit.describe(), "extrapolation_seeds": OWN_SEEDS
+                    if seeds is None else " ".join(map(str, seeds)), "paper_mesh_value": paper,
                     "paper_mesh_error": error, "paper_mesh_relative_error": relative})
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
@@ -857,6 +881,8 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
         heads = [f"N = {n} (h = {mean_edge(n):.3g} R)" + (", paper" if n == PAPER_VERTICES
                                                              else ", finest" if n == finest
                                                              else "") for n in sizes]
+        seeds = {n: int(group.loc[group["n_vertices"] == n, "n_seeds"].max()) for n in sizes}
+        mixed = len(set(seeds.values())) > 1 or (group["extrapolation_seeds"] == OWN_SEEDS).any()
         lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
                   f"Classical threshold of the perfect sphere (thin-shell theory, to compare "
                   f"with the {'imperfect shell' if imperfection.startswith('shape') else 'sphere'}"
@@ -873,16 +899,21 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
             label = first["label"]
             if quantity in BRANCH_END and imperfection.startswith("shape"):
                 label = IMPERFECT_BRANCH_END
+            method = first["method"]
+            used = first["extrapolation_seeds"]
+            if math.isfinite(value) and (used == OWN_SEEDS or len(str(used).split())
+                                         < rows["n_seeds"].max()):
+                method += ", " + _seeds_used(used)
             lines.append(f"| {label} | " + " | ".join(cells) + " | "
                          + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
-                         + f"{first['method']} | {_error(first)} |")
+                         + f"{method} | {_error(first)} |")
         lines.append("")
-        seeds = {n: int(group.loc[group["n_vertices"] == n, "n_seeds"].max()) for n in sizes}
-        if len(set(seeds.values())) > 1:
+        if mixed:
             lines += ["Seeds differ between the meshes (" + ", ".join(
                 f"N = {n}: {k}" for n, k in seeds.items()) + "): each column is the mean over "
-                "its own seeds, so the extrapolation mixes seed sets; compare the seeds that "
-                "every mesh has.", ""]
+                "its own seeds; h -> 0 and the error of the paper's mesh are had from the "
+                "means over the seeds that every mesh has (named beside each extrapolation).",
+                ""]
         born = _born_polygonal(group, sizes)
         if born:
             lines += [f"On N = {', '.join(map(str, born))} the loss of axisymmetry is the "
@@ -890,6 +921,16 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                       "(an imperfection with non-axisymmetric modes at the dent's scale shapes "
                       "its rim).", ""]
     return "\n".join(lines)
+
+
+def _seeds_used(seeds) -> str:
+    """How the markdown names a row's ``extrapolation_seeds`` (a number where a table read
+    back from its CSV file has a single seed)."""
+    if isinstance(seeds, (int, np.integer)):
+        seeds = str(seeds)
+    if not isinstance(seeds, str) or seeds == OWN_SEEDS:
+        return "each mesh's own seeds (none is on every mesh)"
+    return ("seed " if " " not in seeds else "seeds ") + seeds.replace(" ", ", ")
 
 
 def _born_polygonal(group: pd.DataFrame, sizes) -> list[int]:
