@@ -472,6 +472,22 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
     assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
 
 
+def test_states_carried_by_worker_processes_are_those_carried_one_at_a_time(study, tmp_path):
+    # two seeds: two pairs, relaxed at once by two processes, each written as it ends; the
+    # same numbers to the bit as in this process, one after the other
+    import shutil
+
+    serial, parallel = tmp_path / "serial", tmp_path / "parallel"
+    shutil.copytree(study, serial)
+    assert cli_main(["refine", *ARGS, "--seeds", "0,1", "--out", str(serial)]) == 0
+    shutil.copytree(serial, parallel)
+    one = refinement.carry(serial, at=0.019, workers=1)
+    two = refinement.carry(parallel, at=0.019, workers=2)
+    assert len(one) == 2 and {e["source"].split("_s")[1][0] for e in one.values()} == {"0", "1"}
+    assert two == one and all(e["certified"] for e in two.values())
+    assert json.loads((parallel / refinement.CARRIED_JSON).read_text())["carried"] == one
+
+
 def test_a_failed_carry_is_kept_as_failed_reported_as_no_value_and_tried_again(study, tmp_path,
                                                                                 monkeypatch):
     import shutil

@@ -64,7 +64,8 @@ def register(sub) -> None:
                              "transfer): the report then says whether the coarse mesh's W is a "
                              "state of the shell (the same W at the finest mesh's energy) or of "
                              "its mesh; kept in DIR/carried.json, each done once (one "
-                             "minimization on the finest mesh each: minutes on 40000 vertices)")
+                             "minimization on the finest mesh each: minutes on 40000 vertices; "
+                             "--workers at once)")
     parser.add_argument("--report-only", action="store_true",
                         help="compute nothing: rebuild the table, figure and CSV from the "
                              "finished runs in DIR")

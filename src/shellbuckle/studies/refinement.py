@@ -641,7 +641,8 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
               carry_states: bool = False) -> pd.DataFrame:
     """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
     finished are skipped), with ``carry_states`` carry each coarse mesh's state near
-    :data:`CARRY_AT` to the finest mesh (:func:`carry`), then write its report
+    :data:`CARRY_AT` to the finest mesh (:func:`carry`, on ``workers`` local processes, by
+    default one per core), then write its report
     (:func:`write_report`) from the runs of this spec; returns the refinement table."""
     from ..sweep import run_sweep
 
@@ -652,7 +653,9 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
     folders = [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
     if carry_states:
-        carry(out, folders, progress=progress)
+        from ..sweep import default_workers
+
+        carry(out, folders, workers=workers or default_workers(), progress=progress)
     return report(out, folders, energy_at_values=energy_at_values)
 
 
@@ -756,8 +759,51 @@ def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
     return pairs
 
 
+def _carried_entry(source: str, k: int, target: str, threads: int | None) -> dict:
+    """What :data:`CARRIED_JSON` keeps of one carried state (without its names): the
+    comparison's numbers, or ``failed`` with the reason where the relaxation failed (an
+    interrupt is raised, not kept)."""
+    from .transfer import compare
+
+    try:
+        c = compare(source, k, target, threads=threads)
+    except Exception as exc:  # a failed relaxation is kept as such, the others go on
+        if interrupt_of(exc) is not None:
+            raise
+        return {"failed": f"{type(exc).__name__}: {exc}", "certified": False}
+    return {"dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
+            "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
+            "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
+            "relative": c.relative, "certified": c.certified}
+
+
+def _carried_in_processes(pairs, threads, workers):
+    """``(pair, entry)`` of :func:`_carried_entry` for each pair as its worker process ends it
+    (``workers`` fresh processes, each BLAS and PARDISO on ``threads``); an interrupt stops
+    the workers."""
+    import multiprocessing
+
+    jobs = [(*pair, threads) for pair in pairs]
+    pool = multiprocessing.get_context("spawn").Pool(min(workers, len(pairs)))
+    try:
+        for i, entry in pool.imap_unordered(_numbered_entry, enumerate(jobs)):
+            yield pairs[i], entry
+    except BaseException:
+        pool.terminate()
+        raise
+    else:
+        pool.close()
+    finally:
+        pool.join()
+
+
+def _numbered_entry(job):
+    i, args = job
+    return i, _carried_entry(*args)
+
+
 def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
-          progress: bool = False) -> dict:
+          workers: int | None = 1, progress: bool = False) -> dict:
     """Carry, per group and seed, each coarser mesh's step nearest dV/V = ``at`` to the finest
     mesh (:func:`carry_pairs`, :func:`shellbuckle.studies.transfer.compare`) and keep what it
     gives in ``out``/:data:`CARRIED_JSON`, each pair written as soon as it is done (a pair
@@ -765,10 +811,9 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     its energy and that of the finest mesh's own step, their relative difference, whether it
     relaxed to a certified minimum; a relaxation that fails (it left the physical domain) is
     kept as ``failed`` with its reason, reported as no value, and tried again by the next
-    call. ``paths``: the runs (default every run of the sweep folder ``out``). Returns every
-    kept entry."""
-    from .transfer import compare
-
+    call. ``paths``: the runs (default every run of the sweep folder ``out``); ``workers``:
+    processes relaxing pairs at once (each on ``threads``; the same numbers as one at a time,
+    this process writing the file). Returns every kept entry."""
     carried = read_carried(out, strict=True)
     paths = [out] if paths is None else list(paths)
     if not paths:
@@ -781,25 +826,15 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
         from tqdm import tqdm
 
         bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
-    for source, k, target in pairs:
+    done = (_carried_in_processes(pairs, threads, workers) if (workers or 1) > 1
+            and len(pairs) > 1 else ((p, _carried_entry(*p, threads)) for p in pairs))
+    for (source, k, target), entry in done:
         names = {"source": _name(source, out), "step": k, "target": _name(target, out),
                  "at": at}
         key = _carry_key(names["source"], k, names["target"], at)
-        try:
-            c = compare(source, k, target, threads=threads)
-        except Exception as exc:  # a failed relaxation is kept as such, the others go on
-            if interrupt_of(exc) is not None:
-                raise
-            log.warning("carrying %s failed: %s: %s", key, type(exc).__name__, exc)
-            carried[key] = names | {"failed": f"{type(exc).__name__}: {exc}",
-                                    "certified": False}
-            _write_carried(out, carried)
-            continue
-        carried[key] = names | {
-            "dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
-            "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
-            "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
-            "relative": c.relative, "certified": c.certified}
+        if "failed" in entry:
+            log.warning("carrying %s failed: %s", key, entry["failed"])
+        carried[key] = names | entry
         _write_carried(out, carried)
         if bar is not None:
             bar.update()
