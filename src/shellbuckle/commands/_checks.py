@@ -506,11 +506,11 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
 def run_folder(option: str, path):
     """The :class:`~shellbuckle.run.Run` in ``path``; ``ValueError`` naming the option (a path
     that is missing or a file is refused before the run store is loaded)."""
-    if not Path(path).exists():
-        raise ValueError(f"{option} {path}: does not exist; expected a run folder (made by "
-                         "`shellbuckle deflate --out DIR`)")
-    if not Path(path).is_dir():
-        raise ValueError(f"{option} {path}: is a file, not a run folder")
+    from ..store.folder import folder_problem
+
+    problem = folder_problem(path)
+    if problem is not None:
+        raise ValueError(f"{option} {path}: {problem}")
     from ..run import Run
 
     try:

@@ -21,6 +21,7 @@ from pathlib import Path
 import h5py
 
 from ..util import now
+from .folder import folder_problem
 from .layout import (DESCRIPTION_ATTR, FORMAT_NAME, FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS,
                      REQUIRED_MESH_FIELDS, RUN_JSON, STEPS_DIR, _has_step_files, _ranges,
                      _read_h5, _read_mesh_arrays, check_format, step_file)
@@ -35,11 +36,9 @@ def _read_meta(path: Path) -> tuple[dict, bool]:
     """The contents of ``path/run.json`` and False, or the description rebuilt from
     ``mesh.h5`` and True when run.json is missing; ValueError with a clear message (what to do)
     if no run can be read there."""
-    if not path.exists():
-        raise ValueError(f"{path} does not exist; expected a run folder (made by "
-                         "`shellbuckle deflate --out DIR`)")
-    if not path.is_dir():
-        raise ValueError(f"{path} is a file, not a run folder")
+    problem = folder_problem(path)
+    if problem is not None:
+        raise ValueError(f"{path} {problem}")
     try:
         text = (path / RUN_JSON).read_text(encoding="utf-8")
     except FileNotFoundError:
