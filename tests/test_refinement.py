@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 
 import numpy as np
 import pandas as pd
@@ -472,20 +473,67 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
     assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
 
 
-def test_states_carried_by_worker_processes_are_those_carried_one_at_a_time(study, tmp_path):
-    # two seeds: two pairs, relaxed at once by two processes, each written as it ends; the
-    # same numbers to the bit as in this process, one after the other
+@pytest.fixture(scope="module")
+def two_seeds(study, tmp_path_factory):
     import shutil
 
+    out = tmp_path_factory.mktemp("seeds") / "study"
+    shutil.copytree(study, out)
+    assert cli_main(["refine", *ARGS, "--seeds", "0,1", "--out", str(out)]) == 0
+    return out
+
+
+def test_states_carried_by_worker_processes_are_those_carried_one_at_a_time(two_seeds,
+                                                                           tmp_path,
+                                                                           monkeypatch):
+    # two seeds: two pairs, relaxed at once by two processes; the same numbers to the bit as
+    # in this process, one after the other
+    import shutil
+
+    from shellbuckle.studies import transfer as transfer_module
+
     serial, parallel = tmp_path / "serial", tmp_path / "parallel"
-    shutil.copytree(study, serial)
-    assert cli_main(["refine", *ARGS, "--seeds", "0,1", "--out", str(serial)]) == 0
-    shutil.copytree(serial, parallel)
+    shutil.copytree(two_seeds, serial)
+    shutil.copytree(two_seeds, parallel)
     one = refinement.carry(serial, at=0.019, workers=1)
-    two = refinement.carry(parallel, at=0.019, workers=2)
     assert len(one) == 2 and {e["source"].split("_s")[1][0] for e in one.values()} == {"0", "1"}
+
+    def not_here(*args, **kwargs):  # the worker processes import their own
+        raise AssertionError("carried in the calling process")
+
+    monkeypatch.setattr(transfer_module, "compare", not_here)
+    two = refinement.carry(parallel, at=0.019, workers=2)
     assert two == one and all(e["certified"] for e in two.values())
     assert json.loads((parallel / refinement.CARRIED_JSON).read_text())["carried"] == one
+
+
+def test_a_worker_that_dies_stops_the_carry_with_its_reason(two_seeds, tmp_path):
+    # killed while it starts (out of memory, a signal): no wait for a state that never comes
+    import multiprocessing
+    import shutil
+    import signal
+    import threading
+    import time
+
+    out = tmp_path / "study"
+    shutil.copytree(two_seeds, out)
+
+    def kill_workers():  # as soon as they are there (they take a second to start)
+        for _ in range(600):
+            children = multiprocessing.active_children()
+            if children:
+                for child in children:
+                    os.kill(child.pid, signal.SIGKILL)
+                return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_workers)
+    killer.start()
+    with pytest.raises(RuntimeError, match="died .exit code -9"):
+        refinement.carry(out, at=0.019, workers=2)
+    killer.join()
+    assert not multiprocessing.active_children()
+    assert refinement.read_carried(out) == {}
 
 
 def test_a_failed_carry_is_kept_as_failed_reported_as_no_value_and_tried_again(study, tmp_path,
@@ -547,43 +595,59 @@ def test_the_report_says_when_the_meshes_have_different_seeds(study):
     assert "Seeds differ" not in refinement.markdown(refinement.refinement_table(runs))
     extra = runs[runs["n_vertices"] == 300].assign(seed=1)  # a second seed on one mesh only
     text = refinement.markdown(refinement.refinement_table(pd.concat([runs, extra])))
-    assert "Seeds differ between the meshes (N = 300: 2, N = 600: 1)" in text
+    assert "Seeds differ between the meshes (N = 300: seeds 0, 1; N = 600: seed 0)" in text
     assert "order 2 assumed (2 meshes), seed 0 |" in text
+    # as many seeds on each mesh, other ones: said too
+    other = pd.concat([runs[runs["n_vertices"] == 300].assign(seed=1), runs], ignore_index=True)
+    other = other[~((other["n_vertices"] == 600) & (other["seed"] == 0))]
+    other = pd.concat([other, runs[runs["n_vertices"] == 600].assign(seed=2)],
+                      ignore_index=True)
+    text = refinement.markdown(refinement.refinement_table(other))
+    assert "Seeds differ between the meshes (N = 300: seeds 0, 1; N = 600: seed 2)" in text
 
 
 def test_the_extrapolation_compares_the_seeds_that_every_mesh_has(study):
     runs = refinement.collect([study])
+    # the coarse mesh stands for the paper's, so that its error is reported too
+    runs["n_vertices"] = runs["n_vertices"].replace({300: refinement.PAPER_VERTICES})
+    coarse, fine = refinement.PAPER_VERTICES, 600
     alone = refinement.refinement_table(runs)
     assert (alone["extrapolation_seeds"] == "0").all()
+    primary = alone[alone["quantity"] == "primary_dV_over_V"].set_index("n_vertices")
+    assert np.isfinite(primary["paper_mesh_error"]).all()
     # a second seed on the coarse mesh only, far from the first: the columns average it, the
     # extrapolation and the paper mesh's error are those of seed 0 alone, to the bit
-    shifted = runs[runs["n_vertices"] == 300].assign(seed=1)
+    shifted = runs[runs["n_vertices"] == coarse].assign(seed=1)
     for column in ("primary_dV_over_V", refinement.energy_column(0.1)):
         shifted[column] = shifted[column] * 1.5
     both = refinement.refinement_table(pd.concat([runs, shifted], ignore_index=True))
     assert (both["extrapolation_seeds"] == "0").all()
     key = ["quantity", "n_vertices"]
     alone, both = alone.set_index(key).sort_index(), both.set_index(key).sort_index()
-    for column in ("extrapolated", "order", "method", "paper_mesh_value", "paper_mesh_error"):
+    for column in ("extrapolated", "order", "method", "paper_mesh_value", "paper_mesh_error",
+                   "compared_mean"):
         pd.testing.assert_series_equal(both[column], alone[column])
-    coarse = both.loc[("primary_dV_over_V", 300)]
-    assert coarse["n_seeds"] == 2 and coarse["mean"] == pytest.approx(
-        1.25 * alone.loc[("primary_dV_over_V", 300), "mean"], rel=1e-12)
+    row = both.loc[("primary_dV_over_V", coarse)]
+    assert row["n_seeds"] == 2 and row["seeds"] == "0 1" and row["mean"] == pytest.approx(
+        1.25 * alone.loc[("primary_dV_over_V", coarse), "mean"], rel=1e-12)
+    assert row["paper_mesh_value"] == alone.loc[("primary_dV_over_V", coarse), "mean"]
     # the same seed on both meshes: the common seeds are both, the means those of the columns
     again = pd.concat([runs, runs.assign(seed=1)], ignore_index=True)
     table = refinement.refinement_table(again).set_index(key).sort_index()
     assert (table["extrapolation_seeds"] == "0 1").all()
     pd.testing.assert_series_equal(table["extrapolated"], alone["extrapolated"])
     # no seed on both meshes: each mesh's own seeds, said so
-    apart = pd.concat([runs[runs["n_vertices"] == 300],
-                       runs[runs["n_vertices"] == 600].assign(seed=1)], ignore_index=True)
+    other = runs[runs["n_vertices"] == fine].assign(seed=1)
+    other["primary_dV_over_V"] = other["primary_dV_over_V"] * 1.1
+    apart = pd.concat([runs[runs["n_vertices"] == coarse], other], ignore_index=True)
     table = refinement.refinement_table(apart)
-    primary = table[table["quantity"] == "primary_dV_over_V"]
+    primary = table[table["quantity"] == "primary_dV_over_V"].set_index("n_vertices")
     assert (primary["extrapolation_seeds"] == refinement.OWN_SEEDS).all()
+    expected = refinement.richardson(refinement.mean_edge([coarse, fine]),
+                                     primary["mean"].loc[[coarse, fine]].to_numpy())
+    assert primary["extrapolated"].iloc[0] == expected.value
+    assert expected.value != alone.loc[("primary_dV_over_V", coarse), "extrapolated"]
     assert "each mesh's own seeds (none is on every mesh)" in refinement.markdown(table)
-    pd.testing.assert_series_equal(primary["extrapolated"].reset_index(drop=True),
-                                   alone.loc["primary_dV_over_V", "extrapolated"]
-                                   .reset_index(drop=True), check_names=False)
 
 
 def test_refine_carry_is_not_a_report_only_option(study, capsys):

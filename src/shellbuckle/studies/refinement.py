@@ -36,6 +36,7 @@ Reference for the protocol: Quilliet et al., Eur. Phys. J. E 27, 13 (2008), §4.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -469,9 +470,9 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
 # --------------------------------------------------------------------------- the table
 
 GROUP = ["energy_convention", "gamma", "nu", "imperfection"]
-COLUMNS = (*GROUP, "quantity", "label", "n_vertices", "h", "mean", "std", "n_seeds",
-           "extrapolated", "order", "method", "extrapolation_seeds", "paper_mesh_value",
-           "paper_mesh_error", "paper_mesh_relative_error")
+COLUMNS = (*GROUP, "quantity", "label", "n_vertices", "h", "mean", "std", "n_seeds", "seeds",
+           "compared_mean", "extrapolated", "order", "method", "extrapolation_seeds",
+           "paper_mesh_value", "paper_mesh_error", "paper_mesh_relative_error")
 OWN_SEEDS = "each mesh's own"  # extrapolation_seeds where no seed has a value on every mesh
 
 
@@ -483,11 +484,18 @@ def _spread(values: np.ndarray) -> tuple[float, float, int]:
     return float(values.mean()), std, len(values)
 
 
+def _seeds_with(group: pd.DataFrame, quantity: str, n: int) -> list:
+    """The seeds of ``group`` with a finite ``quantity`` on the mesh of ``n`` vertices."""
+    rows = group[group["n_vertices"] == n]
+    return sorted(rows.loc[np.isfinite(rows[quantity].to_numpy(dtype=float)), "seed"].tolist())
+
+
 def _compared_seeds(group: pd.DataFrame, quantity: str, sizes) -> list | None:
     """The seeds of ``group`` with a finite ``quantity`` on every mesh of ``sizes`` that has
     one for any seed (with a run on every mesh where none has), sorted; ``None`` where no seed
     has (each mesh then stands for its own seeds)."""
-    values = group[["seed", "n_vertices", quantity]].dropna()
+    values = group[["seed", "n_vertices", quantity]]
+    values = values[np.isfinite(values[quantity].to_numpy(dtype=float))]
     valued = [n for n in sizes if (values["n_vertices"] == n).any()]
     if not valued:
         values, valued = group, sizes
@@ -539,12 +547,13 @@ def _resolution(group: pd.DataFrame, quantity: str, sizes) -> float:
 def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
     (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
-    sample std and the seeds that have it; per group and quantity the extrapolation
-    (:func:`richardson`) and the paper's mesh's error ``q(3594) - q0`` (absolute, and relative
-    to ``|q0|``), both from the means over the seeds that have the quantity on every mesh
-    (``extrapolation_seeds``, :func:`_compared_seeds`; :data:`OWN_SEEDS`, each mesh's mean
-    over its own seeds, where no seed has), so that a seed run on some meshes only does not
-    pass for a change with the mesh."""
+    sample std, how many seeds have it and which (``seeds``); per group and quantity the
+    extrapolation (:func:`richardson`) and the paper's mesh's error ``q(3594) - q0``
+    (absolute, and relative to ``|q0|``), both from the means over the seeds that have the
+    quantity on every mesh (``compared_mean``, over ``extrapolation_seeds``,
+    :func:`_compared_seeds`; :data:`OWN_SEEDS`, each mesh's mean over its own seeds, where no
+    seed has), so that a seed run on some meshes only does not pass for a change with the
+    mesh."""
     import pandas as pd
 
     rows = []
@@ -561,11 +570,11 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
             seeds = _compared_seeds(group, quantity, sizes)
-            compared = stats if seeds is None else {n: _spread(group.loc[
-                (group["n_vertices"] == n) & group["seed"].isin(seeds), quantity]
-                .to_numpy(dtype=float)) for n in sizes}
-            resolution = _resolution(group, quantity, [n for n in sizes
-                                                       if math.isfinite(compared[n][0])][-2:])
+            chosen = group if seeds is None else group[group["seed"].isin(seeds)]
+            compared = {n: _spread(chosen.loc[chosen["n_vertices"] == n, quantity]
+                                   .to_numpy(dtype=float)) for n in sizes}
+            resolution = _resolution(chosen, quantity, [n for n in sizes
+                                                        if math.isfinite(compared[n][0])][-2:])
             fit = TO_FINEST if quantity.startswith(("dent_angle_at_", "carried_")) else richardson(
                 mean_edge(sizes), [compared[n][0] for n in sizes], resolution=resolution)
             paper = compared.get(PAPER_VERTICES, (math.nan,))[0]
@@ -575,7 +584,10 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
                 rows.append(dict(zip(GROUP, key)) | {
                     "quantity": quantity, "label": label, "n_vertices": n,
                     "h": float(mean_edge(n)), "mean": stats[n][0], "std": stats[n][1],
-                    "n_seeds": stats[n][2], "extrapolated": fit.value, "order": fit.order,
+                    "n_seeds": stats[n][2],
+                    "seeds": " ".join(map(str, _seeds_with(group, quantity, n))),
+                    "compared_mean": compared[n][0], "extrapolated": fit.value,
+                    "order": fit.order,
                     "method": fit.describe(), "extrapolation_seeds": OWN_SEEDS
                     if seeds is None else " ".join(map(str, seeds)), "paper_mesh_value": paper,
                     "paper_mesh_error": error, "paper_mesh_relative_error": relative})
@@ -778,28 +790,57 @@ def _carried_entry(source: str, k: int, target: str, threads: int | None) -> dic
 
 
 def _carried_in_processes(pairs, threads, workers):
-    """``(pair, entry)`` of :func:`_carried_entry` for each pair as its worker process ends it
-    (``workers`` fresh processes, each BLAS and PARDISO on ``threads``); an interrupt stops
-    the workers."""
+    """``(pair, entry)`` of :func:`_carried_entry` for each pair as a worker process ends it
+    (``min(workers, len(pairs))`` fresh processes, each BLAS and PARDISO on ``threads``, which
+    ignore SIGINT: an interrupt reaches this process, which stops them, as it does whenever the
+    caller stops iterating); RuntimeError where a worker dies (killed, out of memory) before
+    its states are done."""
     import multiprocessing
+    import queue
 
-    jobs = [(*pair, threads) for pair in pairs]
-    pool = multiprocessing.get_context("spawn").Pool(min(workers, len(pairs)))
+    context = multiprocessing.get_context("spawn")
+    tasks, results = context.Queue(), context.Queue()
+    n = min(workers, len(pairs))
+    for i, pair in enumerate(pairs):
+        tasks.put((i, (*pair, threads)))
+    for _ in range(n):
+        tasks.put(None)  # one end mark per worker
+    processes = [context.Process(target=_carry_worker, args=(tasks, results), daemon=True)
+                 for _ in range(n)]
+    for process in processes:
+        process.start()
     try:
-        for i, entry in pool.imap_unordered(_numbered_entry, enumerate(jobs)):
+        for _ in pairs:
+            while True:
+                try:
+                    i, entry = results.get(timeout=1.0)
+                    break
+                except queue.Empty:
+                    dead = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
+                    if dead:
+                        raise RuntimeError(
+                            f"a process carrying states to the finest mesh died (exit code "
+                            f"{dead[0]}: killed, or out of memory?); the states carried so far "
+                            "are kept: run again, with fewer workers") from None
             yield pairs[i], entry
-    except BaseException:
-        pool.terminate()
-        raise
-    else:
-        pool.close()
     finally:
-        pool.join()
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+        for process in processes:
+            process.join()
+        tasks.cancel_join_thread()  # states not started are dropped, not waited for at exit
 
 
-def _numbered_entry(job):
-    i, args = job
-    return i, _carried_entry(*args)
+def _carry_worker(tasks, results) -> None:
+    """A worker process of :func:`_carried_in_processes`: carries the states it is given until
+    the end mark."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles it and stops the workers
+    while (task := tasks.get()) is not None:
+        i, args = task
+        results.put((i, _carried_entry(*args)))
 
 
 def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
@@ -828,16 +869,17 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
         bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
     done = (_carried_in_processes(pairs, threads, workers) if (workers or 1) > 1
             and len(pairs) > 1 else ((p, _carried_entry(*p, threads)) for p in pairs))
-    for (source, k, target), entry in done:
-        names = {"source": _name(source, out), "step": k, "target": _name(target, out),
-                 "at": at}
-        key = _carry_key(names["source"], k, names["target"], at)
-        if "failed" in entry:
-            log.warning("carrying %s failed: %s", key, entry["failed"])
-        carried[key] = names | entry
-        _write_carried(out, carried)
-        if bar is not None:
-            bar.update()
+    with contextlib.closing(done):  # the workers stop with this loop, however it ends
+        for (source, k, target), entry in done:
+            names = {"source": _name(source, out), "step": k, "target": _name(target, out),
+                     "at": at}
+            key = _carry_key(names["source"], k, names["target"], at)
+            if "failed" in entry:
+                log.warning("carrying %s failed: %s", key, entry["failed"])
+            carried[key] = names | entry
+            _write_carried(out, carried)
+            if bar is not None:
+                bar.update()
     if bar is not None:
         bar.close()
     return carried
@@ -916,8 +958,10 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
         heads = [f"N = {n} (h = {mean_edge(n):.3g} R)" + (", paper" if n == PAPER_VERTICES
                                                              else ", finest" if n == finest
                                                              else "") for n in sizes]
-        seeds = {n: int(group.loc[group["n_vertices"] == n, "n_seeds"].max()) for n in sizes}
-        mixed = len(set(seeds.values())) > 1 or (group["extrapolation_seeds"] == OWN_SEEDS).any()
+        seeds = {n: sorted(set().union(*map(_seed_list, group.loc[group["n_vertices"] == n,
+                                                                   "seeds"])), key=int)
+                 for n in sizes}
+        mixed = len({tuple(v) for v in seeds.values()}) > 1
         lines += [f"## {convention}, gamma = {gamma:g}, nu = {nu:.3g}, {imperfection}", "",
                   f"Classical threshold of the perfect sphere (thin-shell theory, to compare "
                   f"with the {'imperfect shell' if imperfection.startswith('shape') else 'sphere'}"
@@ -936,19 +980,19 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
                 label = IMPERFECT_BRANCH_END
             method = first["method"]
             used = first["extrapolation_seeds"]
-            if math.isfinite(value) and (used == OWN_SEEDS or len(str(used).split())
-                                         < rows["n_seeds"].max()):
+            if math.isfinite(value) and (used == OWN_SEEDS or set(_seed_list(used))
+                                         != set().union(*map(_seed_list, rows["seeds"]))):
                 method += ", " + _seeds_used(used)
             lines.append(f"| {label} | " + " | ".join(cells) + " | "
                          + (f"{value:.4g}" if math.isfinite(value) else "–") + " | "
                          + f"{method} | {_error(first)} |")
         lines.append("")
         if mixed:
-            lines += ["Seeds differ between the meshes (" + ", ".join(
-                f"N = {n}: {k}" for n, k in seeds.items()) + "): each column is the mean over "
-                "its own seeds; h -> 0 and the error of the paper's mesh are had from the "
-                "means over the seeds that every mesh has (named beside each extrapolation).",
-                ""]
+            lines += ["Seeds differ between the meshes (" + "; ".join(
+                f"N = {n}: {_seeds_used(' '.join(k))}" for n, k in seeds.items()) + "): each "
+                "column is the mean over its own seeds; h -> 0 and the error of the paper's "
+                "mesh compare the seeds named beside the extrapolation (those with the quantity "
+                "on every mesh; where none has it, each mesh's own).", ""]
         born = _born_polygonal(group, sizes)
         if born:
             lines += [f"On N = {', '.join(map(str, born))} the loss of axisymmetry is the "
@@ -958,14 +1002,22 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
     return "\n".join(lines)
 
 
+def _seed_list(seeds) -> list[str]:
+    """The seeds of a ``seeds`` or ``extrapolation_seeds`` cell: space-separated (a number, or
+    NaN for none, where a table was read back from its CSV file)."""
+    if isinstance(seeds, str):
+        return [] if seeds == OWN_SEEDS else seeds.split()
+    if isinstance(seeds, (int, float, np.integer, np.floating)) and math.isfinite(seeds):
+        return [str(int(seeds))]
+    return []
+
+
 def _seeds_used(seeds) -> str:
-    """How the markdown names a row's ``extrapolation_seeds`` (a number where a table read
-    back from its CSV file has a single seed)."""
-    if isinstance(seeds, (int, np.integer)):
-        seeds = str(seeds)
-    if not isinstance(seeds, str) or seeds == OWN_SEEDS:
+    """How the markdown names a row's ``extrapolation_seeds``."""
+    names = _seed_list(seeds)
+    if not names:
         return "each mesh's own seeds (none is on every mesh)"
-    return ("seed " if " " not in seeds else "seeds ") + seeds.replace(" ", ", ")
+    return ("seed " if len(names) == 1 else "seeds ") + ", ".join(names)
 
 
 def _born_polygonal(group: pd.DataFrame, sizes) -> list[int]:
@@ -991,7 +1043,8 @@ def _classical(convention: str, gamma: float, nu: float) -> float:
 
 def figure(table: pd.DataFrame):
     """Each quantity against h (seed means with their spread) per convention and gamma, with
-    its extrapolation: the curve q0 + c h^p over the meshes it used and q0 at h = 0."""
+    its extrapolation: the curve q0 + c h^p over the meshes it used and q0 at h = 0 (where
+    it compared fewer seeds than a mesh has, their means as open circles)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -1013,9 +1066,13 @@ def figure(table: pd.DataFrame):
             ax.errorbar(rows["h"], rows["mean"], yerr=rows["std"].fillna(0.0), marker="o",
                         ms=4, lw=1, color=colour, label=label, capsize=2)
             first = rows.iloc[0]
+            if not np.allclose(rows["compared_mean"], rows["mean"], rtol=0, atol=0,
+                               equal_nan=True):  # the means the extrapolation compared
+                ax.plot(rows["h"], rows["compared_mean"], ls="none", marker="o", ms=6,
+                        mfc="none", color=colour)
             if math.isfinite(first["extrapolated"]):
                 order = first["order"] if math.isfinite(first["order"]) else 0.0
-                used = rows.dropna(subset=["mean"])["h"].to_numpy()[:3]
+                used = rows.dropna(subset=["compared_mean"])["h"].to_numpy()[:3]
                 h = np.linspace(0.0, used.max(), 50)
                 c = _c(rows, first["extrapolated"], order)
                 ax.plot(h, first["extrapolated"] + c * h ** order, ls="--", lw=0.8,
@@ -1041,14 +1098,16 @@ def figure(table: pd.DataFrame):
         fig.legend(handles, labels, loc="outside lower center", ncols=min(3, len(labels)),
                    fontsize=8)
     fig.suptitle("Mesh refinement: values against the mean edge h (dotted: the paper's mesh; "
-                 "star: h -> 0; open diamond: the classical threshold)", fontsize=9)
+                 "star: h -> 0; open circles: the means over the seeds it compares; open "
+                 "diamond: the classical threshold)", fontsize=9)
     return fig
 
 
 def _c(rows: pd.DataFrame, value: float, order: float) -> float:
-    """The coefficient c of q0 + c h^p through the finest mesh of ``rows``."""
-    finest = rows.dropna(subset=["mean"]).iloc[0]
-    return 0.0 if order == 0.0 else (finest["mean"] - value) / finest["h"] ** order
+    """The coefficient c of q0 + c h^p through the finest mesh of ``rows`` (its mean over the
+    seeds the extrapolation compared)."""
+    finest = rows.dropna(subset=["compared_mean"]).iloc[0]
+    return 0.0 if order == 0.0 else (finest["compared_mean"] - value) / finest["h"] ** order
 
 
 def write_report(table: pd.DataFrame, out, *, n_runs: int | None = None) -> list[Path]:
