@@ -506,14 +506,12 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
 def run_folder(option: str, path):
     """The :class:`~shellbuckle.run.Run` in ``path``; ``ValueError`` naming the option (a path
     that is missing or a file is refused before the run store is loaded)."""
-    from ..store.folder import folder_problem
-
-    problem = folder_problem(path)
-    if problem is not None:
-        raise ValueError(f"{option} {path}: {problem}")
-    from ..run import Run
+    from ..store.folder import check_run_folder
 
     try:
+        check_run_folder(path)
+        from ..run import Run
+
         return Run.open(path)
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)

@@ -6,11 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def folder_problem(path) -> str | None:
-    """Why ``path`` cannot be a run folder (it does not exist, or it is a file), or None."""
-    path = Path(path)
-    if not path.exists():
-        return "does not exist; expected a run folder (made by `shellbuckle deflate --out DIR`)"
-    if not path.is_dir():
-        return "is a file, not a run folder"
-    return None
+def check_run_folder(path) -> None:
+    """ValueError, starting with ``path``, where ``path`` cannot be a run folder: it does not
+    exist, or it is a file."""
+    if not Path(path).exists():
+        raise ValueError(f"{path} does not exist; expected a run folder (made by "
+                         "`shellbuckle deflate --out DIR`)")
+    if not Path(path).is_dir():
+        raise ValueError(f"{path} is a file, not a run folder")

@@ -21,7 +21,7 @@ from pathlib import Path
 import h5py
 
 from ..util import now
-from .folder import folder_problem
+from .folder import check_run_folder
 from .layout import (DESCRIPTION_ATTR, FORMAT_NAME, FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS,
                      REQUIRED_MESH_FIELDS, RUN_JSON, STEPS_DIR, _has_step_files, _ranges,
                      _read_h5, _read_mesh_arrays, check_format, step_file)
@@ -36,9 +36,7 @@ def _read_meta(path: Path) -> tuple[dict, bool]:
     """The contents of ``path/run.json`` and False, or the description rebuilt from
     ``mesh.h5`` and True when run.json is missing; ValueError with a clear message (what to do)
     if no run can be read there."""
-    problem = folder_problem(path)
-    if problem is not None:
-        raise ValueError(f"{path} {problem}")
+    check_run_folder(path)
     try:
         text = (path / RUN_JSON).read_text(encoding="utf-8")
     except FileNotFoundError:

@@ -656,7 +656,7 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     :data:`CARRY_AT` to the finest mesh (:func:`carry`, on ``workers`` local processes, by
     default one per core), then write its report
     (:func:`write_report`) from the runs of this spec; returns the refinement table."""
-    from ..sweep import run_sweep
+    from ..sweep import default_workers, run_sweep
 
     spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
                       smooth_degree=smooth_degree, shape_imperfection=shape_imperfection,
@@ -665,8 +665,6 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
     folders = [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
     if carry_states:
-        from ..sweep import default_workers
-
         carry(out, folders, workers=workers or default_workers(), progress=progress)
     return report(out, folders, energy_at_values=energy_at_values)
 
