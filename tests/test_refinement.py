@@ -317,7 +317,7 @@ def test_a_dent_born_polygonal_is_said_so():
             ("primary_dV_over_V", 40000, math.nan), ("axisymmetry_loss_dV_over_V", 40000,
                                                      math.nan)]
     group = pd.DataFrame(rows, columns=["quantity", "n_vertices", "mean"])
-    assert refinement._born_polygonal(group, [3594, 10000, 40000]) == [3594]
+    assert refinement.output._born_polygonal(group, [3594, 10000, 40000]) == [3594]
 
 
 def test_material_interpolation_samples_the_source_surface_along_each_ray():
@@ -572,7 +572,7 @@ def test_only_steps_near_the_volume_fraction_are_carried_and_only_to_the_finest_
     fake = pd.DataFrame({**{c: [runs[c].iloc[0]] * 3 for c in refinement.GROUP},
                          "seed": [0, 0, 1], "n_vertices": [300, 600, 300],
                          "path": ["a", "b", "c"]})
-    assert refinement._finest_runs(fake) == {(*fake.loc[0, refinement.GROUP], 0): "b"}
+    assert refinement.carried._finest_runs(fake) == {(*fake.loc[0, refinement.GROUP], 0): "b"}
 
 
 def test_a_damaged_record_of_carried_states_is_never_written_over(study, tmp_path, caplog):

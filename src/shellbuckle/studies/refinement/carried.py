@@ -1,0 +1,254 @@
+"""States carried from each coarse mesh to the finest mesh of the study and relaxed there
+(:func:`carry`), kept in ``carried.json`` and read into the table's runs
+(:func:`with_carried`)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ...util import interrupt_of
+from .runs import CARRY_AT, carried_columns, collect, step_near
+from .table import GROUP
+
+if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
+    import pandas as pd
+
+log = logging.getLogger(__name__)
+
+CARRIED_JSON = "carried.json"
+CARRIED_VERSION = 1
+
+
+def _name(path, out) -> str:
+    """How a run is named in :data:`CARRIED_JSON`: its folder relative to the study folder
+    ``out`` when it lies in it, else its absolute path."""
+    path, out = Path(path).resolve(), Path(out).resolve()
+    return str(path.relative_to(out)) if path.is_relative_to(out) else str(path)
+
+
+def _carry_key(source: str, step: int, target: str, at: float) -> str:
+    return f"{source} {step} -> {target} at {at:g}"
+
+
+def read_carried(out, *, strict: bool = False) -> dict:
+    """The carried states kept in the study folder ``out`` (:data:`CARRIED_JSON`): ``{key:
+    entry}``, empty if there are none. A file that cannot be read, or of another version, is
+    a ``RuntimeError`` naming it with ``strict`` (:func:`carry` does not write over it), else
+    a warning and no entries (the report goes on without them)."""
+    import json
+
+    path = Path(out) / CARRIED_JSON
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(data, dict) or not isinstance(data.get("carried"), dict):
+            raise ValueError("not a record of carried states")
+        if data.get("version") != CARRIED_VERSION:
+            raise ValueError(f"version {data.get('version')!r}, this version reads "
+                             f"{CARRIED_VERSION}")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        why = f"{path}: {exc}"
+        if strict:
+            raise RuntimeError(f"{why}; move it away to carry the states again") from None
+        log.warning("%s: the carried states are left out of the report", why)
+        return {}
+    return dict(data["carried"])
+
+
+def _write_carried(out, carried: dict) -> None:
+    import json
+
+    from ...store.atomic import atomic_write_bytes
+    from ...util import json_safe
+
+    text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}), indent=1)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
+
+
+def _finest_runs(runs: pd.DataFrame) -> dict:
+    """Per group and seed, the path of the run on the group's finest mesh (over all seeds;
+    a seed without a finished run there has none)."""
+    finest = {}
+    for key, group in runs.groupby(GROUP, sort=True):
+        top = group[group["n_vertices"] == group["n_vertices"].max()]
+        for seed, rows in top.groupby("seed"):
+            if len(rows) == 1:
+                finest[(*key, seed)] = str(rows["path"].iloc[0])
+    return finest
+
+
+def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
+    """The (source folder, step, finest folder) of :func:`carry`: per group and seed, each
+    coarser mesh's run, its stored step nearest dV/V = ``at`` (within half a step: a run that
+    ended before has none), and the run of the same seed on the group's finest mesh, which
+    holds a step at that step's dV/V (pairs without one are left out)."""
+    from ...store.run import RunStore
+    from ..transfer import own_step
+
+    pairs = []
+    finest = _finest_runs(runs)
+    for _, row in runs.iterrows():
+        target = finest.get((*(row[c] for c in GROUP), row["seed"]))
+        if target is None or str(row["path"]) == target:
+            continue
+        table = RunStore.open(row["path"]).table()
+        k = step_near(table, at)
+        if k is None or k == 0:  # the reference sphere is not carried
+            continue
+        dv = float(table.loc[table["step"] == k, "dV_over_V"].iloc[0])
+        if own_step(target, dv) is not None:
+            pairs.append((str(row["path"]), k, target))
+    return pairs
+
+
+def _carried_entry(source: str, k: int, target: str, threads: int | None) -> dict:
+    """What :data:`CARRIED_JSON` keeps of one carried state (without its names): the
+    comparison's numbers, or ``failed`` with the reason where the relaxation failed (an
+    interrupt is raised, not kept)."""
+    from ..transfer import compare
+
+    try:
+        c = compare(source, k, target, threads=threads)
+    except Exception as exc:  # a failed relaxation is kept as such, the others go on
+        if interrupt_of(exc) is not None:
+            raise
+        return {"failed": f"{type(exc).__name__}: {exc}", "certified": False}
+    return {"dV_over_V": c.dV_over_V, "shape": c.carried.shape, "W": c.carried.W,
+            "E_over_kappa": c.carried.E_over_kappa, "source_W": c.source.W,
+            "own_shape": c.own.shape, "own_W": c.own.W, "own_E_over_kappa": c.own.E_over_kappa,
+            "relative": c.relative, "certified": c.certified}
+
+
+def _carried_in_processes(pairs, threads, workers):
+    """``(pair, entry)`` of :func:`_carried_entry` for each pair as a worker process ends it
+    (``min(workers, len(pairs))`` fresh processes, each BLAS and PARDISO on ``threads``, which
+    ignore SIGINT: an interrupt reaches this process, which stops them, as it does whenever the
+    caller stops iterating); RuntimeError where a worker dies (killed, out of memory) before
+    its states are done."""
+    import multiprocessing
+    import queue
+
+    context = multiprocessing.get_context("spawn")
+    tasks, results = context.Queue(), context.Queue()
+    n = min(workers, len(pairs))
+    for i, pair in enumerate(pairs):
+        tasks.put((i, (*pair, threads)))
+    for _ in range(n):
+        tasks.put(None)  # one end mark per worker
+    processes = [context.Process(target=_carry_worker, args=(tasks, results), daemon=True)
+                 for _ in range(n)]
+    for process in processes:
+        process.start()
+    try:
+        for _ in pairs:
+            while True:
+                try:
+                    i, entry = results.get(timeout=1.0)
+                    break
+                except queue.Empty:
+                    dead = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
+                    if dead:
+                        raise RuntimeError(
+                            f"a process carrying states to the finest mesh died (exit code "
+                            f"{dead[0]}: killed, or out of memory?); the states carried so far "
+                            "are kept: run again, with fewer workers") from None
+            yield pairs[i], entry
+    finally:
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+        for process in processes:
+            process.join()
+        tasks.cancel_join_thread()  # states not started are dropped, not waited for at exit
+
+
+def _carry_worker(tasks, results) -> None:
+    """A worker process of :func:`_carried_in_processes`: carries the states it is given until
+    the end mark."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles it and stops the workers
+    while (task := tasks.get()) is not None:
+        i, args = task
+        results.put((i, _carried_entry(*args)))
+
+
+def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
+          workers: int | None = 1, progress: bool = False) -> dict:
+    """Carry, per group and seed, each coarser mesh's step nearest dV/V = ``at`` to the finest
+    mesh (:func:`carry_pairs`, :func:`shellbuckle.studies.transfer.compare`) and keep what it
+    gives in ``out``/:data:`CARRIED_JSON`, each pair written as soon as it is done (a pair
+    already kept is not computed again): the carried state's class and W on the finest mesh,
+    its energy and that of the finest mesh's own step, their relative difference, whether it
+    relaxed to a certified minimum; a relaxation that fails (it left the physical domain) is
+    kept as ``failed`` with its reason, reported as no value, and tried again by the next
+    call. ``paths``: the runs (default every run of the sweep folder ``out``); ``workers``:
+    processes relaxing pairs at once (each on ``threads``; the same numbers as one at a time,
+    this process writing the file). Returns every kept entry."""
+    carried = read_carried(out, strict=True)
+    paths = [out] if paths is None else list(paths)
+    if not paths:
+        return carried
+    pairs = [p for p in carry_pairs(collect(paths, ()), at)  # not kept, or kept as failed
+             if "failed" in carried.get(_carry_key(_name(p[0], out), p[1], _name(p[2], out),
+                                                   at), {"failed": ""})]
+    bar = None
+    if progress and pairs:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
+    done = (_carried_in_processes(pairs, threads, workers) if (workers or 1) > 1
+            and len(pairs) > 1 else ((p, _carried_entry(*p, threads)) for p in pairs))
+    with contextlib.closing(done):  # the workers stop with this loop, however it ends
+        for (source, k, target), entry in done:
+            names = {"source": _name(source, out), "step": k, "target": _name(target, out),
+                     "at": at}
+            key = _carry_key(names["source"], k, names["target"], at)
+            if "failed" in entry:
+                log.warning("carrying %s failed: %s", key, entry["failed"])
+            carried[key] = names | entry
+            _write_carried(out, carried)
+            if bar is not None:
+                bar.update()
+    if bar is not None:
+        bar.close()
+    return carried
+
+
+def with_carried(runs: pd.DataFrame, carried: dict, out, at: float = CARRY_AT) -> pd.DataFrame:
+    """``runs`` with the columns of :func:`carried_columns` from the entries of ``carried``
+    (:func:`read_carried` of the study folder ``out``) carried at ``at`` from a run of
+    ``runs`` to the run of its seed on its group's finest mesh: a coarse run, the W of its
+    state carried there and the relative energy in percent (no value where the carried
+    state is no certified minimum); the finest run, its own W and 0. Without such entries,
+    ``runs`` unchanged."""
+    if not carried or runs.empty:
+        return runs
+    w_col, e_col = carried_columns(at)
+    row_of = {_name(p, out): i for i, p in enumerate(runs["path"])}
+    finest = {_name(p, out) for p in _finest_runs(runs).values()}
+    W, dE = np.full(len(runs), np.nan), np.full(len(runs), np.nan)
+    for entry in carried.values():
+        source, target = entry.get("source"), entry.get("target")
+        if (entry.get("at") != at or "failed" in entry or target not in finest
+                or source not in row_of or source == target):
+            continue
+        i, j = row_of[source], row_of[target]
+        if entry.get("certified"):
+            relative = entry.get("relative")
+            W[i] = entry["W"]
+            dE[i] = math.nan if relative is None else 100.0 * float(relative)
+        W[j], dE[j] = entry["own_W"], 0.0
+    if np.isnan(W).all():
+        return runs
+    runs = runs.copy()
+    runs[w_col], runs[e_col] = W, dE
+    return runs
