@@ -34,8 +34,8 @@ to it. :func:`run_study` runs the sweep and writes ``refinement.md``, ``refineme
 The package, in the order of the data path: :mod:`.runs` (the study's defaults and what it
 reads from one run), :mod:`.extrapolation` (Richardson in h), :mod:`.table` (the refinement
 table), :mod:`.carried` (states carried to the finest mesh), :mod:`.output` (markdown, figure,
-CSV) and :mod:`.study` (the sweep and its report); every name below is importable from the
-package itself.
+CSV) and :mod:`.study` (the sweep and its report); every public name of these modules is
+importable from the package itself.
 
 Reference for the protocol: Quilliet et al., Eur. Phys. J. E 27, 13 (2008), §4.1.
 """

@@ -15,6 +15,7 @@ from .table import GROUP, refinement_table
 if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
     import pandas as pd
 
+
 def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
                smooth_jiggle: float | None = None, smooth_degree: int | None = None,
                shape_imperfection: float | None = None,

@@ -15,6 +15,7 @@ from .runs import (CARRIED_W, ENERGY_AT, PAPER_VERTICES, RESOLUTIONS, angle_colu
 if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
     import pandas as pd
 
+
 GROUP = ["energy_convention", "gamma", "nu", "imperfection"]
 COLUMNS = (*GROUP, "quantity", "label", "n_vertices", "h", "mean", "std", "n_seeds", "seeds",
            "compared_mean", "extrapolated", "order", "method", "extrapolation_seeds",
