@@ -166,8 +166,7 @@ def figure(table: pd.DataFrame):
             ax.errorbar(rows["h"], rows["mean"], yerr=rows["std"].fillna(0.0), marker="o",
                         ms=4, lw=1, color=colour, label=label, capsize=2)
             first = rows.iloc[0]
-            if not np.allclose(rows["compared_mean"], rows["mean"], rtol=0, atol=0,
-                               equal_nan=True):  # the means the extrapolation compared
+            if not rows["compared_mean"].equals(rows["mean"]):  # the means it compared
                 ax.plot(rows["h"], rows["compared_mean"], ls="none", marker="o", ms=6,
                         mfc="none", color=colour)
             if math.isfinite(first["extrapolated"]):

@@ -37,19 +37,14 @@ def _seeds_with(group: pd.DataFrame, quantity: str, n: int) -> list:
     return sorted(rows.loc[np.isfinite(rows[quantity].to_numpy(dtype=float)), "seed"].tolist())
 
 
-def _compared_seeds(group: pd.DataFrame, quantity: str, sizes) -> list | None:
-    """The seeds of ``group`` with a finite ``quantity`` on every mesh of ``sizes`` that has
-    one for any seed (with a run on every mesh where none has), sorted; ``None`` where no seed
-    has (each mesh then stands for its own seeds)."""
-    values = group[["seed", "n_vertices", quantity]]
-    values = values[np.isfinite(values[quantity].to_numpy(dtype=float))]
-    valued = [n for n in sizes if (values["n_vertices"] == n).any()]
-    if not valued:
-        values, valued = group, sizes
-    common = None
-    for n in valued:
-        mine = set(values.loc[values["n_vertices"] == n, "seed"].tolist())
-        common = mine if common is None else common & mine
+def _compared_seeds(group: pd.DataFrame, having: dict) -> list | None:
+    """The seeds with the quantity on every mesh that has it for any seed (``having``: mesh
+    size -> :func:`_seeds_with`; where no mesh has it, the seeds of ``group`` with a run on
+    every mesh), sorted; ``None`` where no seed has (each mesh then stands for its own
+    seeds)."""
+    valued = [set(seeds) for seeds in having.values() if seeds] or [
+        set(group.loc[group["n_vertices"] == n, "seed"]) for n in having]
+    common = set.intersection(*valued) if valued else set()
     return sorted(common) if common else None
 
 
@@ -116,7 +111,8 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
         for quantity, label in (quantities(energy_at_values) | extra).items():
             stats = {n: _spread(group.loc[group["n_vertices"] == n, quantity]
                                 .to_numpy(dtype=float)) for n in sizes}
-            seeds = _compared_seeds(group, quantity, sizes)
+            having = {n: _seeds_with(group, quantity, n) for n in sizes}
+            seeds = _compared_seeds(group, having)
             chosen = group if seeds is None else group[group["seed"].isin(seeds)]
             compared = {n: _spread(chosen.loc[chosen["n_vertices"] == n, quantity]
                                    .to_numpy(dtype=float)) for n in sizes}
@@ -132,7 +128,7 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
                     "quantity": quantity, "label": label, "n_vertices": n,
                     "h": float(mean_edge(n)), "mean": stats[n][0], "std": stats[n][1],
                     "n_seeds": stats[n][2],
-                    "seeds": " ".join(map(str, _seeds_with(group, quantity, n))),
+                    "seeds": " ".join(map(str, having[n])),
                     "compared_mean": compared[n][0], "extrapolated": fit.value,
                     "order": fit.order,
                     "method": fit.describe(), "extrapolation_seeds": OWN_SEEDS
