@@ -8,8 +8,8 @@ small synthetic tables, drawn on the Agg canvas, and checked in display coordina
   segment, error bar or scattered marker of its axes lies inside the legend's box;
 - titles, axis labels, tick labels in view, legend texts and figure texts lie inside the
   figure (none is cut);
-- no text overlaps another of the same axes, no figure text overlaps another or a panel (for
-  a 3D panel, the drawn surface);
+- no text overlaps another of the same axes or of another axes, no figure text overlaps
+  another or a panel (for a 3D panel, the drawn surface);
 - every line contrasts with its axes' background: WCAG contrast ratio >= 2, the colour seen
   through its alpha (for markers alone, the face or the edge);
 - no text says "(±?)"; fit legends state their degrees of freedom.
@@ -46,6 +46,7 @@ from shellbuckle.plots.render import place_legend, render_figure
 from shellbuckle.plots.run import plot_deflation, plot_run, view_axis
 from shellbuckle.plots.theory import plot_theory
 from shellbuckle.run import Run, continue_from, continue_in_parameter, deflate
+from shellbuckle.studies import refinement
 
 from test_analysis_shapes import inverted_cap
 
@@ -116,6 +117,28 @@ def _empty_W():
     return df.assign(W_steps=0), {k: t.assign(shape="capsule") for k, t in tables.items()}
 
 
+def refinement_table() -> pd.DataFrame:
+    """A refinement report's table (:data:`shellbuckle.studies.refinement.COLUMNS`): every
+    quantity, two groups, three meshes, values q0 (1 + 2 h^2) extrapolated to q0."""
+    rows = []
+    labels = refinement.quantities() | refinement.carried_columns()
+    for convention, gamma in (("paper", 15163.0), ("helfrich", 2333.0)):
+        for i, (quantity, label) in enumerate(labels.items()):
+            q0 = (1.0 + 0.1 * i) * (2.0 if convention == "paper" else 1.0)
+            for n in refinement.VERTICES:
+                h = float(refinement.mean_edge(n))
+                mean = q0 * (1.0 + 2.0 * h ** 2)
+                rows.append({
+                    "energy_convention": convention, "gamma": gamma, "nu": 1.0 / 3.0,
+                    "imperfection": "shape 0.1 d", "quantity": quantity, "label": label,
+                    "n_vertices": n, "h": h, "mean": mean, "std": 0.01 * mean, "n_seeds": 2,
+                    "seeds": "0 1", "compared_mean": mean, "extrapolated": q0, "order": 2.0,
+                    "method": "Richardson", "extrapolation_seeds": "0 1",
+                    "paper_mesh_value": q0, "paper_mesh_error": 0.0,
+                    "paper_mesh_relative_error": 0.0})
+    return pd.DataFrame(rows, columns=list(refinement.COLUMNS))
+
+
 #: name -> (builder of the figure from the runs, size in inches; a None height: any).
 FIGURES = {
     "run": (lambda r: plot_deflation(r["a"]), (13.5, 5.0)),
@@ -148,6 +171,7 @@ FIGURES = {
     "rendering": (lambda r: render_figure(r["a"].positions(5), r["a"].faces, title="step 5"),
                   (3.4, None)),
     "animation_frame": (lambda r: animation_frame(r["a"]), (4.0, 4.5)),
+    "refinement": (lambda r: refinement.figure(refinement_table()), (12.8, None)),
 }
 
 
@@ -288,6 +312,10 @@ def visual_problems(fig) -> list[str]:
         for (a, box_a), (b, box_b) in itertools.combinations(group, 2):
             if box_a.overlaps(box_b):
                 problems.append(f"texts {a!r} and {b!r} overlap")
+    for group_a, group_b in itertools.combinations(groups, 2):  # of two panels
+        for (a, box_a), (b, box_b) in itertools.product(group_a, group_b):
+            if box_a.overlaps(box_b):
+                problems.append(f"texts {a!r} and {b!r} of two panels overlap")
     for a, box_a in top:
         for ax in fig.axes:
             if box_a.overlaps(_picture(ax) if ax.name == "3d" else ax.get_window_extent()):
@@ -334,8 +362,12 @@ def test_the_checks_see_what_they_check():
     ax.set_title("a title far too long to fit inside a figure of only four inches wide")
     ax.text(0.1, 0.9, "one")
     ax.text(0.1, 0.9, "two")
+    beside = fig.add_axes((0.5, 0.15, 0.4, 0.5))  # its title on the first panel's data
+    beside.set_title("three")
+    ax.text(0.7, 0.67, "four", transform=fig.transFigure, ha="center")
     problems = " | ".join(visual_problems(fig))
-    for expected in ("legend covers", "is cut", "contrast", "'one' and 'two' overlap"):
+    for expected in ("legend covers", "is cut", "contrast", "'one' and 'two' overlap",
+                     "'four' and 'three' of two panels overlap"):
         assert expected in problems
 
 
