@@ -9,8 +9,10 @@ run folders, and E/kappa interpolated here with NumPy from each run's table.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -485,9 +487,10 @@ def two_seeds(study, tmp_path_factory):
 
 def test_states_carried_by_worker_processes_are_those_carried_one_at_a_time(two_seeds,
                                                                            tmp_path,
-                                                                           monkeypatch):
+                                                                           monkeypatch,
+                                                                           caplog):
     # two seeds: two pairs, relaxed at once by two processes; the same numbers to the bit as
-    # in this process, one after the other
+    # in this process, one after the other; what the workers log is handled here
     import shutil
 
     from shellbuckle.studies import transfer as transfer_module
@@ -502,8 +505,12 @@ def test_states_carried_by_worker_processes_are_those_carried_one_at_a_time(two_
         raise AssertionError("carried in the calling process")
 
     monkeypatch.setattr(transfer_module, "compare", not_here)
-    two = refinement.carry(parallel, at=0.019, workers=2)
+    with caplog.at_level(logging.INFO, logger="shellbuckle"):
+        two = refinement.carry(parallel, at=0.019, workers=2)
     assert two == one and all(e["certified"] for e in two.values())
+    carrying = [r for r in caplog.records if r.getMessage().startswith("carrying step")]
+    assert len(carrying) == 2 and all(r.process != os.getpid() for r in carrying)
+    assert {re.search(r"_v300_s(\d)_", r.getMessage())[1] for r in carrying} == {"0", "1"}
     assert json.loads((parallel / refinement.CARRIED_JSON).read_text())["carried"] == one
 
 

@@ -115,6 +115,7 @@ def _carried_entry(source: str, k: int, target: str, threads: int | None) -> dic
     interrupt is raised, not kept)."""
     from ..transfer import compare
 
+    log.info("carrying step %d of %s to %s", k, source, target)
     try:
         c = compare(source, k, target, threads=threads)
     except Exception as exc:  # a failed relaxation is kept as such, the others go on
@@ -132,7 +133,8 @@ def _carried_in_processes(pairs, threads, workers):
     (``min(workers, len(pairs))`` fresh processes, each BLAS and PARDISO on ``threads``, which
     ignore SIGINT: an interrupt reaches this process, which stops them, as it does whenever the
     caller stops iterating); RuntimeError where a worker dies (killed, out of memory) before
-    its states are done."""
+    its states are done. What the workers log reaches this process's handlers (the command
+    line's format and level)."""
     import multiprocessing
     import queue
 
@@ -143,16 +145,16 @@ def _carried_in_processes(pairs, threads, workers):
         tasks.put((i, (*pair, threads)))
     for _ in range(n):
         tasks.put(None)  # one end mark per worker
-    processes = [context.Process(target=_carry_worker, args=(tasks, results), daemon=True)
-                 for _ in range(n)]
+    level = logging.getLogger("shellbuckle").getEffectiveLevel()
+    processes = [context.Process(target=_carry_worker, args=(tasks, results, level),
+                                 daemon=True) for _ in range(n)]
     for process in processes:
         process.start()
     try:
         for _ in pairs:
             while True:
                 try:
-                    i, entry = results.get(timeout=1.0)
-                    break
+                    item = results.get(timeout=1.0)
                 except queue.Empty:
                     dead = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
                     if dead:
@@ -160,6 +162,13 @@ def _carried_in_processes(pairs, threads, workers):
                             f"a process carrying states to the finest mesh died (exit code "
                             f"{dead[0]}: killed, or out of memory?); the states carried so far "
                             "are kept: run again, with fewer workers") from None
+                    continue
+                if not isinstance(item, logging.LogRecord):
+                    break
+                logger = logging.getLogger(item.name)  # a worker's message, as if logged here
+                if logger.isEnabledFor(item.levelno):
+                    logger.handle(item)
+            i, entry = item
             yield pairs[i], entry
     finally:
         for process in processes:
@@ -170,12 +179,18 @@ def _carried_in_processes(pairs, threads, workers):
         tasks.cancel_join_thread()  # states not started are dropped, not waited for at exit
 
 
-def _carry_worker(tasks, results) -> None:
+def _carry_worker(tasks, results, level: int) -> None:
     """A worker process of :func:`_carried_in_processes`: carries the states it is given until
-    the end mark."""
+    the end mark; shellbuckle's log records at ``level`` or above go to ``results`` (the
+    calling process handles them)."""
+    import logging.handlers
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles it and stops the workers
+    logger = logging.getLogger("shellbuckle")
+    logger.setLevel(level)
+    logger.addHandler(logging.handlers.QueueHandler(results))
+    logger.propagate = False
     while (task := tasks.get()) is not None:
         i, args = task
         results.put((i, _carried_entry(*args)))
