@@ -276,6 +276,13 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     (study / refinement.CSV).unlink()
     assert cli_main(["refine", "--report-only", "--out", str(study)]) == 0
     assert (study / refinement.CSV).read_text() == before
+    # with the study's options: the report of those runs; with another study's: of none
+    assert cli_main(["refine", *ARGS, "--report-only", "--out", str(study)]) == 0
+    assert (study / refinement.CSV).read_text() == before
+    other = [a if a != "271" else "280" for a in ARGS]
+    assert cli_main(["refine", *other, "--report-only", "--out", str(study)]) == 0
+    assert pd.read_csv(study / refinement.CSV).empty
+    assert cli_main(["refine", "--report-only", "--out", str(study)]) == 0
 
 
 @pytest.mark.parametrize("argv, named", [
@@ -304,6 +311,8 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     (["--workers", "0"], "--workers 0"),
     (["--seeds", "0-200"], "--seeds 0-200"),
     (["--report-only"], "no study"),
+    (["--report-only", "--gamma", "abc"], "--gamma: 'abc'"),
+    (["--report-only", "--until=0.01"], "--until 0.01"),
 ])
 def test_bad_input_exits_2_in_one_line_and_creates_nothing(tmp_path, capsys, argv, named):
     out = tmp_path / "study"
@@ -417,14 +426,16 @@ def test_the_transfer_command_compares_the_carried_minimum_with_the_targets_own(
     assert "a certified minimum" in text and "the same class" in text
 
 
-def test_the_transfer_command_refuses_before_any_work(study, tmp_path, capsys):
+def test_the_transfer_command_refuses_before_any_work(study, tmp_path, capsys, monkeypatch):
     from shellbuckle.cli import main
     from shellbuckle.mesh import random_sphere
     from shellbuckle.run import deflate
+    from shellbuckle.studies import transfer as transfer_module
 
     path = str(collect_runs([study])["path"].iloc[0])
     other = deflate(random_sphere(200, seed=0), ShellParameters.from_gamma(300, nu=1 / 3),
                     until=0.019, out=tmp_path / "other", locate=False, threads=1)
+    monkeypatch.setattr(transfer_module, "compare", None)  # any work would raise TypeError
     for argv, says in (([path, str(other.path)], "TARGET"),
                        ([path, path, "--out", str(tmp_path / "x.txt")], "--out"),
                        ([path, path, "--step", "99"], "--step 99"),
@@ -433,6 +444,92 @@ def test_the_transfer_command_refuses_before_any_work(study, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and says in err
     assert not (tmp_path / "x.txt").exists()
+
+
+def test_a_transfer_that_fails_during_its_work_exits_1(study, capsys, monkeypatch):
+    # a ValueError of the work (a singular matrix: NumPy's LinAlgError is one) is no bad input
+    from shellbuckle.cli import main
+    from shellbuckle.studies import transfer as transfer_module
+
+    def singular(*args, **kwargs):
+        np.linalg.solve(np.zeros((2, 2)), np.ones(2))
+
+    monkeypatch.setattr(transfer_module, "compare", singular)
+    path = str(collect_runs([study])["path"].iloc[0])
+    assert main(["transfer", path, path, "--step", "1"]) == 1
+    err = capsys.readouterr().err
+    assert err == "shellbuckle transfer: failed: LinAlgError: Singular matrix\n"
+
+
+def test_a_carried_state_is_minimized_with_blas_on_one_thread(study, monkeypatch):
+    # as a step of a run: its numbers do not depend on the machine's cores
+    from threadpoolctl import threadpool_info
+
+    from shellbuckle.protocol import deflate as deflate_module
+
+    seen, minimize = [], deflate_module._minimize
+
+    def spy(*args, **kwargs):
+        seen.extend(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+        return minimize(*args, **kwargs)
+
+    monkeypatch.setattr(deflate_module, "_minimize", spy)
+    runs = {int(r["n_vertices"]): r["path"] for _, r in collect_runs([study]).iterrows()}
+    transfer(runs[300], 1, runs[600], threads=1)
+    assert seen and set(seen) == {1}
+
+
+def test_states_carried_meanwhile_by_another_process_are_kept(study, tmp_path, monkeypatch):
+    # each entry is merged, under the file's lock, with what the file holds when it is written
+    import shutil
+
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    theirs = {"source": "elsewhere", "target": "there", "step": 3, "at": 0.019,
+              "failed": "RuntimeError: theirs"}
+
+    def meanwhile(source, k, target, threads):  # another process keeps its state first
+        refinement.carried._keep(out, "theirs", theirs)
+        return {"failed": "RuntimeError: ours", "certified": False}
+
+    monkeypatch.setattr(refinement.carried, "_carried_entry", meanwhile)
+    kept = refinement.carry(out, at=0.019)
+    assert kept["theirs"] == theirs and len(kept) == 2
+    assert refinement.read_carried(out) == kept
+
+
+def test_only_the_studys_finest_mesh_is_carried_to(study):
+    runs = refinement.collect([study], ())
+    assert len(refinement.carry_pairs(runs, 0.019, finest_vertices=600)) == 1
+    assert refinement.carry_pairs(runs, 0.019, finest_vertices=2000) == []  # not run yet
+
+
+def test_the_report_is_written_when_the_carry_fails(study, tmp_path, monkeypatch):
+    import shutil
+
+    from shellbuckle import sweep as sweep_module
+    from shellbuckle.studies.refinement import study as study_module
+
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    for name in (refinement.CSV, refinement.MARKDOWN):
+        (out / name).unlink()
+
+    def dies(*args, **kwargs):
+        raise RuntimeError("a process carrying states to the finest mesh died")
+
+    monkeypatch.setattr(study_module, "carry", dies)
+    with pytest.raises(RuntimeError, match="died"):
+        refinement.run_study(out, gammas=[271], conventions=["helfrich"], vertices=[300, 600],
+                             shape_imperfection_d=0, smooth_degree=6, until=0.3, workers=1,
+                             progress=False, carry_states=True)
+    assert (out / refinement.CSV).exists() and (out / refinement.MARKDOWN).exists()
+    # a damaged record of carried states is refused before any run
+    (out / refinement.CARRIED_JSON).write_text("[1, 2]")
+    monkeypatch.setattr(sweep_module, "run_sweep", None)  # a run would raise TypeError
+    with pytest.raises(RuntimeError, match="move it away"):
+        refinement.run_study(out, gammas=[271], conventions=["helfrich"], vertices=[300, 600],
+                             carry_states=True)
 
 
 def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_path,
@@ -587,7 +684,13 @@ def test_a_damaged_record_of_carried_states_is_never_written_over(study, tmp_pat
 
     out = tmp_path / "study"
     shutil.copytree(study, out)
-    for text in ("{\"version\": 1, \"carr", "[1, 2]", '{"version": 99, "carried": {}}'):
+    entry = {"source": "a", "target": "b", "step": 1, "at": 0.645, "certified": True,
+             "own_W": 4, "W": 5, "relative": 0.01}
+    assert refinement.carried._entry_problem(entry) is None
+    damaged = [{"k": [1, 2]}, {"k": {**entry, "W": None}}, {"k": {**entry, "step": "1"}},
+               {"k": {key: v for key, v in entry.items() if key != "own_W"}}]
+    for text in ("{\"version\": 1, \"carr", "[1, 2]", '{"version": 99, "carried": {}}',
+                 *(json.dumps({"version": 1, "carried": c}) for c in damaged)):
         (out / refinement.CARRIED_JSON).write_text(text)
         with pytest.raises(RuntimeError, match="carried.json: .*move it away"):
             refinement.carry(out, at=0.019)

@@ -101,7 +101,10 @@ def main(argv=None) -> int:
         if interrupt is not None:
             return _interrupted(args.command, interrupt)
         logging.getLogger("shellbuckle").debug("failure", exc_info=True)
-        print(f"shellbuckle {args.command}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+        from .commands._checks import WorkFailed
+
+        why = exc if isinstance(exc, WorkFailed) else f"{type(exc).__name__}: {exc}"
+        print(f"shellbuckle {args.command}: failed: {why}", file=sys.stderr)
         return 1
 
 

@@ -13,11 +13,14 @@ and what is allowed (docs/errors.md).
   elastic length), :func:`check_smooth_degree` (and the smooth imperfection), :func:`check_c0`, :func:`check_pressures`, :func:`check_steps`,
   :func:`check_parallel`; and the paths: :func:`input_file`, :func:`run_folder`,
   :func:`output_file`, :func:`output_folder`.
+- :func:`the_work`: around a command's work, once its input is checked: a ``ValueError``
+  raised there is a failure (:class:`WorkFailed`, exit code 1), not bad input.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import math
 import os
@@ -25,6 +28,26 @@ import re
 import sys
 import warnings
 from pathlib import Path
+
+class WorkFailed(RuntimeError):
+    """A command's work failed (exit code 1) with a ``ValueError`` (NumPy's ``LinAlgError``, a
+    shape that cannot be classified): its input had been accepted."""
+
+
+@contextlib.contextmanager
+def the_work():
+    """Around a command's work, after its input is checked: a ``ValueError`` raised inside
+    becomes :class:`WorkFailed` (exit code 1, not the exit code 2 of bad input); an interrupt
+    stays one."""
+    from ..util import interrupt_of
+
+    try:
+        yield
+    except ValueError as exc:
+        if interrupt_of(exc) is not None:
+            raise
+        raise WorkFailed(f"{type(exc).__name__}: {exc}") from exc
+
 
 #: Most vertices of a mesh: a Newton step factorizes the sparse 3N x 3N Hessian, whose fill-in
 #: at 10^6 vertices already takes tens of GB of memory.

@@ -3,7 +3,7 @@ bisection in volume (:mod:`shellbuckle.locate`)."""
 
 from __future__ import annotations
 
-from ._checks import add_command, add_number, run_folder
+from ._checks import add_command, add_number, run_folder, the_work
 from ._options import add_threads_option
 
 
@@ -78,9 +78,10 @@ def _cmd(args) -> int:
         if why is not None:
             print(f"{run.path}: not located: {why}")
             continue
-        found[str(run.path)] = points = locate(
-            run, tol=DEFAULT_TOL if args.tol is None else args.tol, threads=args.threads,
-            again=args.again)
+        with the_work():
+            found[str(run.path)] = points = locate(
+                run, tol=DEFAULT_TOL if args.tol is None else args.tol, threads=args.threads,
+                again=args.again)
         if not args.json:
             from ._output import print_located
 

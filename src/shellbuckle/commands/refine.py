@@ -3,13 +3,31 @@
 from __future__ import annotations
 
 from ._checks import (add_command, add_number, allowed, as_option, check_mesh,
-                      check_smooth_degree, check_value, output_folder, typed)
+                      check_smooth_degree, check_value, output_folder, the_work, typed)
 from ._options import shape_degrees, values
 
 
-def register(sub) -> None:
+#: The options of the study's runs (dest -> flag): given with --report-only, they choose the
+#: runs of the report.
+STUDY_OPTIONS = {"gamma": "--gamma", "energy_convention": "--energy-convention",
+                 "vertices": "--vertices", "seeds": "--seeds", "smooth_jiggle": "--smooth-jiggle",
+                 "smooth_degree": "--smooth-degree",
+                 "shape_imperfection_d": "--shape-imperfection-d",
+                 "shape_imperfection": "--shape-imperfection", "shape_degree": "--shape-degree",
+                 "until": "--until"}
+
+
+def _defaults() -> dict:
+    """The defaults of the study's options given as lists (the others default to None)."""
     from ..studies.refinement import CONVENTIONS, GAMMAS, VERTICES
 
+    return {"gamma": ",".join(f"{g:g}" for g in GAMMAS),
+            "energy_convention": ",".join(CONVENTIONS),
+            "vertices": ",".join(map(str, VERTICES)), "seeds": "0"}
+
+
+def register(sub) -> None:
+    defaults = _defaults()
     parser = add_command(
         sub, "refine", help="the mesh-refinement study: thresholds, W and energies against "
                             "the mesh size, extrapolated to h -> 0",
@@ -25,15 +43,16 @@ def register(sub) -> None:
                     "seeds), each extrapolated to a zero mean edge h (Richardson), and the "
                     "error of the paper's 3594-vertex mesh against it; and the angle between "
                     "each mesh's dent axis and the finest mesh's at those dV/V.")
-    parser.add_argument("--gamma", metavar="G,..", default=",".join(f"{g:g}" for g in GAMMAS),
+    parser.add_argument("--gamma", metavar="G,..", default=defaults["gamma"],
                         help="comma-separated gammas (default %(default)s); " + allowed("gamma"))
-    parser.add_argument("--energy-convention", metavar="C,..", default=",".join(CONVENTIONS),
+    parser.add_argument("--energy-convention", metavar="C,..",
+                        default=defaults["energy_convention"],
                         help="comma-separated energy conventions (default %(default)s)")
-    parser.add_argument("--vertices", metavar="N,..", default=",".join(map(str, VERTICES)),
+    parser.add_argument("--vertices", metavar="N,..", default=defaults["vertices"],
                         help="comma-separated mesh sizes of randomized spheres (default "
                              "%(default)s; at least two, three for a fitted order); "
                              + allowed("vertices"))
-    parser.add_argument("--seeds", metavar="S,..", default="0",
+    parser.add_argument("--seeds", metavar="S,..", default=defaults["seeds"],
                         help="comma-separated seeds or ranges a-b (default 0: one seed); "
                              + allowed("seed"))
     add_number(parser, "--smooth-jiggle", "smooth_jiggle",
@@ -68,7 +87,8 @@ def register(sub) -> None:
                              "--workers at once)")
     parser.add_argument("--report-only", action="store_true",
                         help="compute nothing: rebuild the table, figure and CSV from the "
-                             "finished runs in DIR")
+                             "finished runs in DIR (with study options, from the runs of "
+                             "that study only, as the command without --report-only does)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="study folder (a sweep folder): new, empty, or a study to resume")
@@ -84,11 +104,22 @@ def _cmd(args) -> int:
         if args.carry:
             raise ValueError("--carry: allowed: without --report-only (carrying computes one "
                              "minimization per state; the report reads what is kept)")
+        defaults = _defaults()
+        chosen = any(getattr(args, dest) not in (None, defaults.get(dest))
+                     for dest in STUDY_OPTIONS)
+        options = _options(args) if chosen else None
         _study_folder(args.out)
-        table = refinement.report(args.out)
+        paths = None
+        if options is not None:  # the runs of that study, as `refine` with them reports
+            spec = refinement.study_spec(**options)
+            paths = [f for f in (Path(args.out) / p["name"] for p in spec.points())
+                     if f.exists()]
+        with the_work():
+            table = refinement.report(args.out, paths)
     else:
         options = _options(args)
         _out(args.out)
+        # not the_work(): the sweep refuses a folder of other runs (bad input) with ValueError
         table = refinement.run_study(args.out, workers=args.workers, progress=not args.quiet,
                                      carry_states=args.carry, **options)
     out = Path(args.out)

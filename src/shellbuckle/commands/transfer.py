@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from ._checks import add_command, add_number, output_file, run_folder
+from ._checks import add_command, add_number, output_file, run_folder, the_work
 from ._options import add_threads_option, stored_step
 
 
@@ -59,17 +59,18 @@ def _cmd(args) -> int:
         if back is None:
             raise ValueError(f"--both-ways: TARGET {args.target} has no step at dV/V = "
                              f"{dv:.6g} (step {k} of SOURCE) to carry back")
-    results = [compare(source, k, target, threads=args.threads)]
-    if back is not None:
-        results.append(compare(target, back, source, threads=args.threads))
-    if args.out is not None:
-        from ..export import export_conformation
+    with the_work():
+        results = [compare(source, k, target, threads=args.threads)]
+        if back is not None:
+            results.append(compare(target, back, source, threads=args.threads))
+        if args.out is not None:
+            from ..export import export_conformation
 
-        first = results[0]
-        export_conformation(target, first.transferred.X, args.out,
-                            values={"dV_over_V": first.dV_over_V,
-                                    "E_over_kappa": first.carried.E_over_kappa},
-                            what=f"step {k} of run {source.path} carried")
+            first = results[0]
+            export_conformation(target, first.transferred.X, args.out,
+                                values={"dV_over_V": first.dV_over_V,
+                                        "E_over_kappa": first.carried.E_over_kappa},
+                                what=f"step {k} of run {source.path} carried")
     if args.json:
         from ._output import print_json
 

@@ -326,12 +326,13 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
                     max_iter=p.max_iter, **options)
 
 
+@one_blas_thread
 def minimize_at_volume(ctx: Context, X: np.ndarray, V_target: float):
     """``X`` minimized at the volume ``V_target`` with the run's energy by the protocol's
     minimizer (its method and tolerance; Newton's method certifies the minimum), without the
     step's jiggle and zero-curvature cycle: a conformation that did not come from the run's
-    own path, e.g. one carried from another mesh (:mod:`shellbuckle.studies.transfer`).
-    Returns the minimizer's :class:`~shellbuckle.solve.result.MinimizeResult`."""
+    own path, e.g. one carried from another mesh (:mod:`shellbuckle.studies.transfer`); BLAS
+    on one thread, as a step. Returns the minimizer's :class:`~shellbuckle.solve.result.MinimizeResult`."""
     return _minimize(ctx, ctx.energy, np.asarray(X, dtype=float), V_target)
 
 

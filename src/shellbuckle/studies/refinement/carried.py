@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the 
 
 log = logging.getLogger(__name__)
 
-CARRIED_JSON = "carried.json"
+CARRIED_JSON, CARRIED_LOCK = "carried.json", ".carried.lock"
 CARRIED_VERSION = 1
 
 
@@ -53,6 +53,10 @@ def read_carried(out, *, strict: bool = False) -> dict:
         if data.get("version") != CARRIED_VERSION:
             raise ValueError(f"version {data.get('version')!r}, this version reads "
                              f"{CARRIED_VERSION}")
+        for key, entry in data["carried"].items():
+            problem = _entry_problem(entry)
+            if problem is not None:
+                raise ValueError(f"entry {key!r}: {problem}")
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         why = f"{path}: {exc}"
         if strict:
@@ -62,22 +66,62 @@ def read_carried(out, *, strict: bool = False) -> dict:
     return dict(data["carried"])
 
 
-def _write_carried(out, carried: dict) -> None:
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _entry_problem(entry) -> str | None:
+    """What is wrong with an entry of :data:`CARRIED_JSON` (None: nothing): it names its runs,
+    step and volume fraction, and holds ``failed`` or the numbers the report reads."""
+    if not isinstance(entry, dict):
+        return "not a record"
+    for field, ok in (("source", str), ("target", str), ("step", int)):
+        if not isinstance(entry.get(field), ok) or isinstance(entry.get(field), bool):
+            return f"no {field}"
+    if not _is_number(entry.get("at")):
+        return "no at"
+    if "failed" in entry:
+        return None
+    if not isinstance(entry.get("certified"), bool) or not _is_number(entry.get("own_W")):
+        return "no certified or own_W"
+    if entry["certified"] and not (_is_number(entry.get("W")) and (
+            entry.get("relative") is None or _is_number(entry.get("relative")))):
+        return "certified without W or relative"
+    return None
+
+
+def _keep(out, key: str, entry: dict) -> dict:
+    """Add ``entry`` under ``key`` to :data:`CARRIED_JSON` in ``out``, merged with what the
+    file holds now (under its lock, so that two processes carrying states into one study
+    lose none of each other's); returns every kept entry."""
     import json
 
-    from ...store.atomic import atomic_write_bytes
+    from ...store.atomic import FileLock, atomic_write_bytes, remove_temporaries
     from ...util import json_safe
 
-    text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}), indent=1)
     Path(out).mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
+    lock = FileLock(Path(out) / CARRIED_LOCK)
+    lock.acquire(blocking=True)
+    try:
+        remove_temporaries(Path(out), {CARRIED_JSON})
+        carried = read_carried(out, strict=True) | {key: entry}
+        text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}),
+                          indent=1)
+        atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
+    finally:
+        lock.release()
+    return carried
 
 
-def _finest_runs(runs: pd.DataFrame) -> dict:
+def _finest_runs(runs: pd.DataFrame, vertices: int | None = None) -> dict:
     """Per group and seed, the path of the run on the group's finest mesh (over all seeds;
-    a seed without a finished run there has none)."""
+    a seed without a finished run there has none); with ``vertices``, only of groups whose
+    finest mesh has that many vertices (a study whose finest mesh has no run yet has
+    none)."""
     finest = {}
     for key, group in runs.groupby(GROUP, sort=True):
+        if vertices is not None and group["n_vertices"].max() != vertices:
+            continue
         top = group[group["n_vertices"] == group["n_vertices"].max()]
         for seed, rows in top.groupby("seed"):
             if len(rows) == 1:
@@ -85,16 +129,18 @@ def _finest_runs(runs: pd.DataFrame) -> dict:
     return finest
 
 
-def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT) -> list[tuple]:
+def carry_pairs(runs: pd.DataFrame, at: float = CARRY_AT, *,
+                finest_vertices: int | None = None) -> list[tuple]:
     """The (source folder, step, finest folder) of :func:`carry`: per group and seed, each
     coarser mesh's run, its stored step nearest dV/V = ``at`` (within half a step: a run that
     ended before has none), and the run of the same seed on the group's finest mesh, which
-    holds a step at that step's dV/V (pairs without one are left out)."""
+    holds a step at that step's dV/V (pairs without one are left out); with
+    ``finest_vertices``, only to a finest mesh of that many vertices."""
     from ...store.run import RunStore
     from ..transfer import own_step
 
     pairs = []
-    finest = _finest_runs(runs)
+    finest = _finest_runs(runs, finest_vertices)
     for _, row in runs.iterrows():
         target = finest.get((*(row[c] for c in GROUP), row["seed"]))
         if target is None or str(row["path"]) == target:
@@ -130,11 +176,11 @@ def _carried_entry(source: str, k: int, target: str, threads: int | None) -> dic
 
 def _carried_in_processes(pairs, threads, workers):
     """``(pair, entry)`` of :func:`_carried_entry` for each pair as a worker process ends it
-    (``min(workers, len(pairs))`` fresh processes, each BLAS and PARDISO on ``threads``, which
-    ignore SIGINT: an interrupt reaches this process, which stops them, as it does whenever the
-    caller stops iterating); RuntimeError where a worker dies (killed, out of memory) before
-    its states are done. What the workers log reaches this process's handlers (the command
-    line's format and level)."""
+    (``min(workers, len(pairs))`` fresh processes, each PARDISO on ``threads`` and BLAS on
+    one, which ignore SIGINT: an interrupt reaches this process, which stops them, as it does
+    whenever the caller stops iterating); RuntimeError where a worker dies (killed, out of
+    memory) before its states are done. What the workers log reaches this process's handlers
+    (the command line's format and level)."""
     import multiprocessing
     import queue
 
@@ -197,7 +243,8 @@ def _carry_worker(tasks, results, level: int) -> None:
 
 
 def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
-          workers: int | None = 1, progress: bool = False) -> dict:
+          workers: int | None = 1, progress: bool = False,
+          finest_vertices: int | None = None) -> dict:
     """Carry, per group and seed, each coarser mesh's step nearest dV/V = ``at`` to the finest
     mesh (:func:`carry_pairs`, :func:`shellbuckle.studies.transfer.compare`) and keep what it
     gives in ``out``/:data:`CARRIED_JSON`, each pair written as soon as it is done (a pair
@@ -207,12 +254,15 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     kept as ``failed`` with its reason, reported as no value, and tried again by the next
     call. ``paths``: the runs (default every run of the sweep folder ``out``); ``workers``:
     processes relaxing pairs at once (each on ``threads``; the same numbers as one at a time,
-    this process writing the file). Returns every kept entry."""
+    this process writing the file); ``finest_vertices``: carry only to a finest mesh of that
+    many vertices (a study's finest mesh, before its runs there exist). Returns every kept
+    entry."""
     carried = read_carried(out, strict=True)
     paths = [out] if paths is None else list(paths)
     if not paths:
         return carried
-    pairs = [p for p in carry_pairs(collect(paths, ()), at)  # not kept, or kept as failed
+    pairs = [p for p in carry_pairs(collect(paths, ()), at, finest_vertices=finest_vertices)
+             # not kept, or kept as failed
              if "failed" in carried.get(_carry_key(_name(p[0], out), p[1], _name(p[2], out),
                                                    at), {"failed": ""})]
     bar = None
@@ -222,19 +272,20 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
         bar = tqdm(total=len(pairs), desc="carrying to the finest mesh", unit="state")
     done = (_carried_in_processes(pairs, threads, workers) if (workers or 1) > 1
             and len(pairs) > 1 else ((p, _carried_entry(*p, threads)) for p in pairs))
-    with contextlib.closing(done):  # the workers stop with this loop, however it ends
-        for (source, k, target), entry in done:
-            names = {"source": _name(source, out), "step": k, "target": _name(target, out),
-                     "at": at}
-            key = _carry_key(names["source"], k, names["target"], at)
-            if "failed" in entry:
-                log.warning("carrying %s failed: %s", key, entry["failed"])
-            carried[key] = names | entry
-            _write_carried(out, carried)
-            if bar is not None:
-                bar.update()
-    if bar is not None:
-        bar.close()
+    try:
+        with contextlib.closing(done):  # the workers stop with this loop, however it ends
+            for (source, k, target), entry in done:
+                names = {"source": _name(source, out), "step": k,
+                         "target": _name(target, out), "at": at}
+                key = _carry_key(names["source"], k, names["target"], at)
+                if "failed" in entry:
+                    log.warning("carrying %s failed: %s", key, entry["failed"])
+                carried = _keep(out, key, names | entry)
+                if bar is not None:
+                    bar.update()
+    finally:
+        if bar is not None:
+            bar.close()
     return carried
 
 

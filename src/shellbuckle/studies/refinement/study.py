@@ -74,19 +74,30 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     """Run (or resume) the study's sweep in ``out`` (:func:`study_spec`, runs that are
     finished are skipped), with ``carry_states`` carry each coarse mesh's state near
     :data:`CARRY_AT` to the finest mesh (:func:`carry`, on ``workers`` local processes, by
-    default one per core), then write its report
-    (:func:`write_report`) from the runs of this spec; returns the refinement table."""
+    default one per core; only to the spec's finest mesh), then write its report
+    (:func:`write_report`) from the runs of this spec (also where the carry failed, whose
+    error is raised after it); returns the refinement table."""
     from ...sweep import default_workers, run_sweep
 
     spec = study_spec(gammas, conventions, vertices, seeds, smooth_jiggle=smooth_jiggle,
                       smooth_degree=smooth_degree, shape_imperfection=shape_imperfection,
                       shape_imperfection_d=shape_imperfection_d, shape_degree=shape_degree,
                       until=until)
+    if carry_states:
+        read_carried(out, strict=True)  # a damaged record: refused before hours of runs
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
     folders = [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
+    failure = None
     if carry_states:
-        carry(out, folders, workers=workers or default_workers(), progress=progress)
-    return report(out, folders, energy_at_values=energy_at_values)
+        try:
+            carry(out, folders, workers=workers or default_workers(), progress=progress,
+                  finest_vertices=max(vertices))
+        except Exception as exc:  # the runs' report is written all the same, then it is raised
+            failure = exc
+    table = report(out, folders, energy_at_values=energy_at_values)
+    if failure is not None:
+        raise failure
+    return table
 
 
 def report(out, paths=None, *, energy_at_values=ENERGY_AT) -> pd.DataFrame:
