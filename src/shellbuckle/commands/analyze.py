@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from ._checks import add_command, run_folder
+from ._checks import add_command, run_folder, the_work
 
 
 def register(sub) -> None:
@@ -32,8 +32,9 @@ def _cmd(args) -> int:
                          "stored in it)")
     if not found.steps:
         raise ValueError(f"run folder {args.dir!r} has no finished step yet")
-    table = analyze_run(found, progress=not args.quiet)
-    found_events = events(found, table=table)
+    with the_work():
+        table = analyze_run(found, progress=not args.quiet)
+        found_events = events(found, table=table)
     if args.json:
         from ._output import print_json
 
