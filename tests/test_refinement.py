@@ -640,6 +640,49 @@ def test_a_worker_that_dies_stops_the_carry_with_its_reason(two_seeds, tmp_path)
     assert refinement.read_carried(out) == {}
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the processes in /proc")
+def test_a_worker_ends_with_a_carry_that_is_killed():
+    # a SIGKILL of the calling process leaves its worker, waiting for its next state, to end
+    # by itself (SIGKILL runs no clean-up: without the worker's own watch it waits forever)
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    code = """if True:
+        import multiprocessing, os, time
+        from shellbuckle.studies.refinement import carried
+        context = multiprocessing.get_context("spawn")
+        tasks, results = context.Queue(), context.Queue()
+        tasks.put((0, ("/nonexistent", 1, "/nonexistent", 1)))  # fails at once, kept as such
+        worker = context.Process(target=carried._carry_worker,
+                                 args=(tasks, results, 30, os.getpid()), daemon=True)
+        worker.start()
+        assert "failed" in results.get()[1]  # the worker is working, and waits for more
+        print(worker.pid, flush=True)
+        time.sleep(600)
+    """
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        worker = int(parent.stdout.readline())
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+
+    def running(pid):
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    for _ in range(50):
+        if not running(worker):
+            break
+        time.sleep(0.1)
+    assert not running(worker)
+
+
 def test_a_failed_carry_is_kept_as_failed_reported_as_no_value_and_tried_again(study, tmp_path,
                                                                                 monkeypatch):
     import shutil

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -192,8 +193,9 @@ def _carried_in_processes(pairs, threads, workers):
     for _ in range(n):
         tasks.put(None)  # one end mark per worker
     level = logging.getLogger("shellbuckle").getEffectiveLevel()
-    processes = [context.Process(target=_carry_worker, args=(tasks, results, level),
-                                 daemon=True) for _ in range(n)]
+    processes = [context.Process(target=_carry_worker,
+                                 args=(tasks, results, level, os.getpid()), daemon=True)
+                 for _ in range(n)]
     for process in processes:
         process.start()
     try:
@@ -225,14 +227,17 @@ def _carried_in_processes(pairs, threads, workers):
         tasks.cancel_join_thread()  # states not started are dropped, not waited for at exit
 
 
-def _carry_worker(tasks, results, level: int) -> None:
+def _carry_worker(tasks, results, level: int, parent: int) -> None:
     """A worker process of :func:`_carried_in_processes`: carries the states it is given until
     the end mark; shellbuckle's log records at ``level`` or above go to ``results`` (the
-    calling process handles them)."""
+    calling process handles them). It ends within a second of its parent (the process
+    ``parent``), however that ends (a SIGKILL leaves no one to stop it)."""
     import logging.handlers
     import signal
+    import threading
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles it and stops the workers
+    threading.Thread(target=_end_with, args=(parent,), daemon=True).start()
     logger = logging.getLogger("shellbuckle")
     logger.setLevel(level)
     logger.addHandler(logging.handlers.QueueHandler(results))
@@ -240,6 +245,15 @@ def _carry_worker(tasks, results, level: int) -> None:
     while (task := tasks.get()) is not None:
         i, args = task
         results.put((i, _carried_entry(*args)))
+
+
+def _end_with(parent: int) -> None:
+    """End this process as soon as the process ``parent`` is no longer its parent."""
+    import time
+
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
 
 
 def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
