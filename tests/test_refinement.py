@@ -279,10 +279,9 @@ def test_running_again_computes_nothing_and_report_only_rebuilds(study, capsys):
     # with the study's options: the report of those runs; with another study's: of none
     assert cli_main(["refine", *ARGS, "--report-only", "--out", str(study)]) == 0
     assert (study / refinement.CSV).read_text() == before
-    other = [a if a != "271" else "280" for a in ARGS]
-    assert cli_main(["refine", *other, "--report-only", "--out", str(study)]) == 0
-    assert pd.read_csv(study / refinement.CSV).empty
-    assert cli_main(["refine", "--report-only", "--out", str(study)]) == 0
+    other = [a if a != "271" else "280" for a in ARGS]  # a slip: refused, the report kept
+    assert cli_main(["refine", *other, "--report-only", "--out", str(study)]) == 2
+    assert (study / refinement.CSV).read_text() == before
 
 
 @pytest.mark.parametrize("argv, named", [
@@ -463,7 +462,7 @@ def test_a_transfer_that_fails_during_its_work_exits_1(study, capsys, monkeypatc
 
 def test_a_carried_state_is_minimized_with_blas_on_one_thread(study, monkeypatch):
     # as a step of a run: its numbers do not depend on the machine's cores
-    from threadpoolctl import threadpool_info
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     from shellbuckle.protocol import deflate as deflate_module
 
@@ -475,7 +474,8 @@ def test_a_carried_state_is_minimized_with_blas_on_one_thread(study, monkeypatch
 
     monkeypatch.setattr(deflate_module, "_minimize", spy)
     runs = {int(r["n_vertices"]): r["path"] for _, r in collect_runs([study]).iterrows()}
-    transfer(runs[300], 1, runs[600], threads=1)
+    with threadpool_limits(2, user_api="blas"):  # two BLAS threads around it, as on 2 cores
+        transfer(runs[300], 1, runs[600], threads=1)
     assert seen and set(seen) == {1}
 
 
@@ -496,6 +496,11 @@ def test_states_carried_meanwhile_by_another_process_are_kept(study, tmp_path, m
     kept = refinement.carry(out, at=0.019)
     assert kept["theirs"] == theirs and len(kept) == 2
     assert refinement.read_carried(out) == kept
+    # a state carried meanwhile is not replaced by a failure of the same state here
+    done = {**theirs, "certified": True, "own_W": 4, "W": 4, "relative": 0.0}
+    del done["failed"]
+    refinement.carried._keep(out, "theirs", done)
+    assert refinement.carried._keep(out, "theirs", theirs)["theirs"] == done
 
 
 def test_only_the_studys_finest_mesh_is_carried_to(study):
@@ -660,7 +665,7 @@ def test_a_worker_ends_with_a_carry_that_is_killed():
         worker = context.Process(target=carried._carry_worker,
                                  args=(tasks, results, 30, os.getpid()), daemon=True)
         worker.start()
-        assert "failed" in results.get()[1]  # the worker is working, and waits for more
+        assert "failed" in results.get(timeout=120)[1]  # it works, and waits for more
         print(worker.pid, flush=True)
         time.sleep(600)
     """
@@ -678,7 +683,7 @@ def test_a_worker_ends_with_a_carry_that_is_killed():
         except OSError:
             return False
 
-    for _ in range(50):
+    for _ in range(300):  # it looks once a second
         if not running(worker):
             break
         time.sleep(0.1)

@@ -26,6 +26,15 @@ def _defaults() -> dict:
             "vertices": ",".join(map(str, VERTICES)), "seeds": "0"}
 
 
+def _with_defaults(args):
+    """``args`` with the study options' defaults where none was typed (the parser keeps them
+    None, so that --report-only sees which were given)."""
+    for dest, value in _defaults().items():
+        if getattr(args, dest) is None:
+            setattr(args, dest, value)
+    return args
+
+
 def register(sub) -> None:
     defaults = _defaults()
     parser = add_command(
@@ -43,16 +52,17 @@ def register(sub) -> None:
                     "seeds), each extrapolated to a zero mean edge h (Richardson), and the "
                     "error of the paper's 3594-vertex mesh against it; and the angle between "
                     "each mesh's dent axis and the finest mesh's at those dV/V.")
-    parser.add_argument("--gamma", metavar="G,..", default=defaults["gamma"],
-                        help="comma-separated gammas (default %(default)s); " + allowed("gamma"))
+    parser.add_argument("--gamma", metavar="G,..",
+                        help=f"comma-separated gammas (default {defaults['gamma']}); "
+                             + allowed("gamma"))
     parser.add_argument("--energy-convention", metavar="C,..",
-                        default=defaults["energy_convention"],
-                        help="comma-separated energy conventions (default %(default)s)")
-    parser.add_argument("--vertices", metavar="N,..", default=defaults["vertices"],
+                        help="comma-separated energy conventions (default "
+                             f"{defaults['energy_convention']})")
+    parser.add_argument("--vertices", metavar="N,..",
                         help="comma-separated mesh sizes of randomized spheres (default "
-                             "%(default)s; at least two, three for a fitted order); "
+                             f"{defaults['vertices']}; at least two, three for a fitted order); "
                              + allowed("vertices"))
-    parser.add_argument("--seeds", metavar="S,..", default=defaults["seeds"],
+    parser.add_argument("--seeds", metavar="S,..",
                         help="comma-separated seeds or ranges a-b (default 0: one seed); "
                              + allowed("seed"))
     add_number(parser, "--smooth-jiggle", "smooth_jiggle",
@@ -104,20 +114,21 @@ def _cmd(args) -> int:
         if args.carry:
             raise ValueError("--carry: allowed: without --report-only (carrying computes one "
                              "minimization per state; the report reads what is kept)")
-        defaults = _defaults()
-        chosen = any(getattr(args, dest) not in (None, defaults.get(dest))
-                     for dest in STUDY_OPTIONS)
-        options = _options(args) if chosen else None
+        chosen = any(getattr(args, dest) is not None for dest in STUDY_OPTIONS)  # typed
+        options = _options(_with_defaults(args)) if chosen else None
         _study_folder(args.out)
         paths = None
         if options is not None:  # the runs of that study, as `refine` with them reports
             spec = refinement.study_spec(**options)
             paths = [f for f in (Path(args.out) / p["name"] for p in spec.points())
                      if f.exists()]
+            if not paths:
+                raise ValueError(f"--out {args.out}: holds no run of the study these options "
+                                 "give (its report is left as it is)")
         with the_work():
             table = refinement.report(args.out, paths)
     else:
-        options = _options(args)
+        options = _options(_with_defaults(args))
         _out(args.out)
         # not the_work(): the sweep refuses a folder of other runs (bad input) with ValueError
         table = refinement.run_study(args.out, workers=args.workers, progress=not args.quiet,

@@ -74,8 +74,9 @@ from .spec import PARAMETER_CONTROLS, Protocol
 log = logging.getLogger(__name__)
 
 
-@functools.lru_cache(maxsize=1)
 def _blas_controller() -> ThreadpoolController:
+    """The BLAS libraries loaded now (0.4 ms; not kept: a library loaded later, e.g. by a
+    SciPy module imported after the first step, would run on all cores)."""
     return ThreadpoolController()
 
 

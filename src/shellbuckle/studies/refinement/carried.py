@@ -94,7 +94,8 @@ def _entry_problem(entry) -> str | None:
 def _keep(out, key: str, entry: dict) -> dict:
     """Add ``entry`` under ``key`` to :data:`CARRIED_JSON` in ``out``, merged with what the
     file holds now (under its lock, so that two processes carrying states into one study
-    lose none of each other's); returns every kept entry."""
+    lose none of each other's; a failure does not replace a state carried meanwhile); returns
+    every kept entry."""
     import json
 
     from ...store.atomic import FileLock, atomic_write_bytes, remove_temporaries
@@ -105,7 +106,10 @@ def _keep(out, key: str, entry: dict) -> dict:
     lock.acquire(blocking=True)
     try:
         remove_temporaries(Path(out), {CARRIED_JSON})
-        carried = read_carried(out, strict=True) | {key: entry}
+        carried = read_carried(out, strict=True)
+        if "failed" not in carried.get(key, {"failed": ""}) and "failed" in entry:
+            return carried  # another process carried it meanwhile: its result stays
+        carried[key] = entry
         text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}),
                           indent=1)
         atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
@@ -205,6 +209,8 @@ def _carried_in_processes(pairs, threads, workers):
                     item = results.get(timeout=1.0)
                 except queue.Empty:
                     dead = [p.exitcode for p in processes if p.exitcode not in (None, 0)]
+                    if not dead and all(p.exitcode is not None for p in processes):
+                        dead = [0]  # every worker ended, a state is missing all the same
                     if dead:
                         raise RuntimeError(
                             f"a process carrying states to the finest mesh died (exit code "

@@ -94,9 +94,11 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
                   finest_vertices=max(vertices))
         except Exception as exc:  # the runs' report is written all the same, then it is raised
             failure = exc
-    table = report(out, folders, energy_at_values=energy_at_values)
-    if failure is not None:
-        raise failure
+    try:
+        table = report(out, folders, energy_at_values=energy_at_values)
+    finally:  # the carry's failure, not one of the report that follows it
+        if failure is not None:
+            raise failure
     return table
 
 
