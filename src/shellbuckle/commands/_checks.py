@@ -29,6 +29,9 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..util import interrupt_of
+
+
 class WorkFailed(RuntimeError):
     """A command's work failed (exit code 1) with a ``ValueError`` (NumPy's ``LinAlgError``, a
     shape that cannot be classified): its input had been accepted."""
@@ -39,8 +42,6 @@ def the_work():
     """Around a command's work, after its input is checked: a ``ValueError`` raised inside
     becomes :class:`WorkFailed` (exit code 1, not the exit code 2 of bad input); an interrupt
     stays one."""
-    from ..util import interrupt_of
-
     try:
         yield
     except ValueError as exc:

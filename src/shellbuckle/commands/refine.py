@@ -119,9 +119,7 @@ def _cmd(args) -> int:
         _study_folder(args.out)
         paths = None
         if options is not None:  # the runs of that study, as `refine` with them reports
-            spec = refinement.study_spec(**options)
-            paths = [f for f in (Path(args.out) / p["name"] for p in spec.points())
-                     if f.exists()]
+            paths = refinement.study_folders(args.out, refinement.study_spec(**options))
             if not paths:
                 raise ValueError(f"--out {args.out}: holds no run of the study these options "
                                  "give (its report is left as it is)")

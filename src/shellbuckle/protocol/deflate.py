@@ -333,7 +333,8 @@ def minimize_at_volume(ctx: Context, X: np.ndarray, V_target: float):
     minimizer (its method and tolerance; Newton's method certifies the minimum), without the
     step's jiggle and zero-curvature cycle: a conformation that did not come from the run's
     own path, e.g. one carried from another mesh (:mod:`shellbuckle.studies.transfer`); BLAS
-    on one thread, as a step. Returns the minimizer's :class:`~shellbuckle.solve.result.MinimizeResult`."""
+    on one thread, as a step. Returns the minimizer's
+    :class:`~shellbuckle.solve.result.MinimizeResult`."""
     return _minimize(ctx, ctx.energy, np.asarray(X, dtype=float), V_target)
 
 

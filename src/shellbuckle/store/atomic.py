@@ -136,3 +136,18 @@ class FileLock:
 
     def __del__(self):
         self.release()
+
+
+@contextlib.contextmanager
+def locked_update(folder: Path, name: str, lock_name: str):
+    """Hold the lock file ``lock_name`` in ``folder`` (waiting for it) with the stale
+    temporaries of the file ``name`` removed: the read-merge-write of a file that several
+    processes add to (each reads the file inside, merges its part and writes it atomically)."""
+    folder = Path(folder)
+    lock = FileLock(folder / lock_name)
+    lock.acquire(blocking=True)
+    try:
+        remove_temporaries(folder, {name})
+        yield
+    finally:
+        lock.release()

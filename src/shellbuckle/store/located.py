@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..util import json_safe
-from .atomic import FileLock, atomic_write_bytes, remove_temporaries
+from .atomic import atomic_write_bytes, locked_update
 
 log = logging.getLogger(__name__)
 
@@ -64,14 +64,9 @@ def write_located(folder, events: Mapping[str, Mapping]) -> None:
     """Add or replace the located points ``{name: point}`` of the run in ``folder`` (a damaged
     or older file is replaced without a warning: the points it held are made again)."""
     folder = Path(folder)
-    lock = FileLock(folder / LOCATED_LOCK)
-    lock.acquire(blocking=True)
-    try:
-        remove_temporaries(folder, {LOCATED_JSON})
+    with locked_update(folder, LOCATED_JSON, LOCATED_LOCK):
         merged = read_located(folder, warn=False) | {name: dict(point)
                                                      for name, point in events.items()}
         text = json.dumps(json_safe({"version": LOCATED_VERSION, "events": merged}), indent=1,
                           allow_nan=False)
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
-    finally:
-        lock.release()

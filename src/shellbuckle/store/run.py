@@ -98,8 +98,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..util import now
-from .atomic import (FileLock, atomic_write_bytes, fsync_folder, remove_temporaries,
-                     temporary_target)
+from .atomic import (FileLock, atomic_write_bytes, fsync_folder, locked_update,
+                     remove_temporaries, temporary_target)
 # the store's names are all importable from here: the public ones and the helpers that other
 # modules and the tests use
 from .layout import (_INTEGER_COLUMNS, _WRITER_FILES, ANALYSIS_COLUMNS,  # noqa: F401
@@ -639,17 +639,12 @@ class RunStore:
             if k not in steps:
                 self._existing_step(k)  # raises with the list of finished steps
             updates[k] = _scalar_dict(values, f"analysis of step {k}", reserved=TABLE_COLUMNS)
-        lock = FileLock(self._path / ANALYSIS_LOCK)
-        lock.acquire(blocking=True)
-        try:
-            remove_temporaries(self._path, {ANALYSIS_JSON})
+        with locked_update(self._path, ANALYSIS_JSON, ANALYSIS_LOCK):
             merged = self.analysis()
             for k, values in updates.items():
                 merged.setdefault(k, {}).update(values)
             text = json.dumps({str(k): merged[k] for k in sorted(merged)}, indent=1)
             atomic_write_bytes(self._path / ANALYSIS_JSON, text.encode("utf-8"))
-        finally:
-            lock.release()
         if self._writer.held:
             self._write_table()
         elif self._writer.acquire():  # no live writer: refresh table.csv ourselves

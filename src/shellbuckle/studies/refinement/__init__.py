@@ -52,7 +52,7 @@ from .table import (GROUP, COLUMNS, OWN_SEEDS, refinement_table)
 from .carried import (CARRIED_JSON, CARRIED_VERSION, read_carried, carry_pairs, carry,
                       with_carried)
 from .output import (CSV, MARKDOWN, FIGURE, markdown, figure, write_report)
-from .study import (study_spec, run_study, report)
+from .study import (study_spec, study_folders, run_study, report)
 
 __all__ = ["GAMMAS", "CONVENTIONS", "PAPER_VERTICES", "VERTICES", "ENERGY_AT",
            "PAPER_JIGGLE_SIGMA", "THRESHOLDS", "BRANCH_END", "RESOLUTIONS", "IMPERFECT_BRANCH_END",
@@ -64,4 +64,4 @@ __all__ = ["GAMMAS", "CONVENTIONS", "PAPER_VERTICES", "VERTICES", "ENERGY_AT",
            "TO_FINEST", "richardson", "GROUP", "COLUMNS", "OWN_SEEDS", "refinement_table",
            "CARRIED_JSON", "CARRIED_VERSION", "read_carried", "carry_pairs", "carry",
            "with_carried", "CSV", "MARKDOWN", "FIGURE", "markdown", "figure", "write_report",
-           "study_spec", "run_study", "report"]
+           "study_spec", "study_folders", "run_study", "report"]

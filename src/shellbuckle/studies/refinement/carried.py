@@ -98,24 +98,24 @@ def _keep(out, key: str, entry: dict) -> dict:
     every kept entry."""
     import json
 
-    from ...store.atomic import FileLock, atomic_write_bytes, remove_temporaries
+    from ...store.atomic import atomic_write_bytes, locked_update
     from ...util import json_safe
 
     Path(out).mkdir(parents=True, exist_ok=True)
-    lock = FileLock(Path(out) / CARRIED_LOCK)
-    lock.acquire(blocking=True)
-    try:
-        remove_temporaries(Path(out), {CARRIED_JSON})
+    with locked_update(Path(out), CARRIED_JSON, CARRIED_LOCK):
         carried = read_carried(out, strict=True)
-        if "failed" not in carried.get(key, {"failed": ""}) and "failed" in entry:
+        if _done(carried, key) and "failed" in entry:
             return carried  # another process carried it meanwhile: its result stays
         carried[key] = entry
         text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}),
                           indent=1)
         atomic_write_bytes(Path(out) / CARRIED_JSON, (text + "\n").encode())
-    finally:
-        lock.release()
     return carried
+
+
+def _done(carried: dict, key: str) -> bool:
+    """Whether ``carried`` holds the state ``key`` carried (kept, and not as failed)."""
+    return key in carried and "failed" not in carried[key]
 
 
 def _finest_runs(runs: pd.DataFrame, vertices: int | None = None) -> dict:
@@ -282,9 +282,7 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     if not paths:
         return carried
     pairs = [p for p in carry_pairs(collect(paths, ()), at, finest_vertices=finest_vertices)
-             # not kept, or kept as failed
-             if "failed" in carried.get(_carry_key(_name(p[0], out), p[1], _name(p[2], out),
-                                                   at), {"failed": ""})]
+             if not _done(carried, _carry_key(_name(p[0], out), p[1], _name(p[2], out), at))]
     bar = None
     if progress and pairs:
         from tqdm import tqdm

@@ -64,6 +64,11 @@ def study_spec(gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=
                      smooth_jiggle=smooth_jiggle, smooth_degree=degree, **shape)
 
 
+def study_folders(out, spec) -> list[Path]:
+    """The run folders of the sweep ``spec`` (:func:`study_spec`) that exist in ``out``."""
+    return [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
+
+
 def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, seeds=(0,), *,
               smooth_jiggle: float | None = None, smooth_degree: int | None = None,
               shape_imperfection: float | None = None,
@@ -86,7 +91,7 @@ def run_study(out, gammas=GAMMAS, conventions=CONVENTIONS, vertices=VERTICES, se
     if carry_states:
         read_carried(out, strict=True)  # a damaged record: refused before hours of runs
     run_sweep(spec, out, scheduler=scheduler, workers=workers, progress=progress)
-    folders = [f for f in (Path(out) / p["name"] for p in spec.points()) if f.exists()]
+    folders = study_folders(out, spec)
     failure = None
     if carry_states:
         try:
