@@ -21,7 +21,8 @@ from shellbuckle.solve.gauge import pinned_dofs, rigid_modes
 from shellbuckle.solve.linear import CountingSolver, _load_mkl
 from shellbuckle.solve.linesearch import (ENERGY_NOISE, ENERGY_ROUNDOFF, max_displacement,
                                           projected_gradient)
-from shellbuckle.solve.newton import ABANDONED, AT_RESOLUTION
+from shellbuckle.solve.newton import ABANDONED, AT_FLOOR, AT_RESOLUTION
+from shellbuckle.solve.system import gradient_floor
 from test_solve_energies import spring_shell
 
 
@@ -431,19 +432,21 @@ def test_keywords_are_the_options_of_the_same_name():
 
 def test_a_gradient_test_below_the_round_off_floor_ends_on_the_step_test():
     # tol_grad = atol_grad = 0 asks for a gradient the coordinates cannot resolve (the floor
-    # of 160k-vertex meshes at the protocol's tolerance). Oracles: the minimum of the plain
-    # gradient test (energy, positions to the coordinates' precision), the exact Newton step
-    # at the end (below tol_step of |X|), and the same run without the step test, which stalls
+    # of 160k-vertex meshes at the protocol's tolerance); the floor test is off. Oracles: the
+    # minimum of the plain gradient test (energy, positions to the coordinates' precision),
+    # the exact Newton step at the end (below tol_step of |X|), and the same run without the
+    # step test, which stalls
     mesh, energy, volume, V0 = shell(4, 2333)
     V = 0.97 * V0
     X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
     plain = newton(energy, volume, X0, V, tol_grad=1e-12)
-    floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, max_iter=40)
+    floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_floor=0.0,
+                   max_iter=40)
     assert plain.success and floor.success and floor.message == AT_RESOLUTION
     assert floor.inertia == 0 and floor.certificate == "double"
     # not asked to show the inertia: none reported
-    quick = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, max_iter=40,
-                   certify=False)
+    quick = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_floor=0.0,
+                   max_iter=40, certify=False)
     assert quick.message == AT_RESOLUTION and quick.inertia is None and quick.certificate is None
     assert quick.fun == pytest.approx(plain.fun, rel=1e-13)
     assert floor.fun == pytest.approx(plain.fun, rel=1e-13)
@@ -454,5 +457,53 @@ def test_a_gradient_test_below_the_round_off_floor_ends_on_the_step_test():
     s = Z @ np.linalg.solve(Z.T @ K @ Z, -Z.T @ r)
     assert max_displacement(s.reshape(-1, 3)) <= 1e-15 * np.abs(floor.x).max() * 4
     stalled = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_step=0.0,
-                     max_iter=40)
+                     tol_floor=0.0, max_iter=40)
     assert not stalled.success
+
+
+@pytest.mark.parametrize("n, gamma", [(3, 1000), (5, 15163)])
+def test_the_gradient_floor_is_the_hessian_on_one_unit_in_the_last_place(n, gamma):
+    # the floor is the change of r under a one-ulp change of every coordinate. Oracle: the
+    # first-order change K d, from the assembled Hessian of the Lagrangian applied to the same
+    # sign patterns (scaled up so that the product itself has no round-off)
+    mesh, energy, volume, V0 = shell(n, gamma)
+    X = 0.95 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(3).standard_normal(mesh.X.shape)
+    gE, gV = energy.gradient(X), volume.gradient(X)
+    lam, r = projected_gradient(gE, gV)
+    K = energy.hessian(X) - lam * volume.hessian(X)
+    rng = np.random.default_rng(7)
+    Kd = [np.linalg.norm(K @ (np.where(rng.random(X.shape) < 0.5, -1.0, 1.0)
+                              * np.spacing(X)).ravel() * 2.0 ** 60) / 2.0 ** 60
+          for _ in range(2)]
+    floor = gradient_floor(energy, volume, X, r, seed=7)
+    assert floor == pytest.approx(min(Kd), rel=0.05)
+    # reproducible, and far below |r| away from a minimum
+    assert gradient_floor(energy, volume, X, r, seed=7) == floor
+    assert floor < 1e-6 * np.linalg.norm(r)
+
+
+def test_a_gradient_test_below_the_round_off_floor_ends_on_the_floor_test():
+    # as above, with the floor test on and the step test off. Oracles: the minimum of the
+    # plain gradient test; |r| at the end within the floor measured there with other sign
+    # patterns; no more steps than the step test takes to the same minimum
+    mesh, energy, volume, V0 = shell(4, 2333)
+    V = 0.97 * V0
+    X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    plain = newton(energy, volume, X0, V, tol_grad=1e-12)
+    floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_step=0.0,
+                   max_iter=40)
+    assert floor.success and floor.message == AT_FLOOR
+    assert floor.inertia == 0 and floor.certificate in ("single", "double")
+    assert tangent_inertia_dense(energy, volume, floor.x) == 0
+    assert floor.fun == pytest.approx(plain.fun, rel=1e-13)
+    assert np.abs(floor.x - plain.x).max() <= 1e-12
+    _, r = projected_gradient(energy.gradient(floor.x), volume.gradient(floor.x))
+    assert 0.0 < floor.grad_norm <= 1.2 * gradient_floor(energy, volume, floor.x, r, seed=11)
+    step = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_floor=0.0,
+                  max_iter=40)
+    assert step.message == AT_RESOLUTION and floor.nit <= step.nit
+    # a tol_floor below the rounding of a minimum (|r| ~ 0.29 floor) is never met: the step
+    # test ends it
+    strict = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_floor=1e-3,
+                    max_iter=40)
+    assert strict.message == AT_RESOLUTION

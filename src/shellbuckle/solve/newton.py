@@ -96,17 +96,30 @@ the point. The volume constraint then holds to round-off (``~1e-15`` relative).
 The gradient test has a floor: the coordinates are known to one unit in the last place, and
 a displacement that small changes the gradient by about that unit times the stiffest
 eigenvalue of ``K`` (bending at the mesh scale, ``~ kappa / h^2``), summed over all dofs.
-That floor grows like ``N^1.5`` while ``|grad E|`` falls like ``N^-1/2``: on 160k vertices it
-lies above ``tol_grad |grad E|`` for the protocol's ``tol_grad = 1e-9``. Hence the step test
-(Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization*, SIAM 1996, §7.2): a
-point whose exact Newton step (unshifted, double precision) moves no vertex by more than
-``tol_step`` times the largest vertex distance from the origin, after a step that changed
-the energy by at most ``tol_energy |E|``, is the minimum to the precision of its coordinates
-and the minimization ends there, converged, with the message :data:`AT_RESOLUTION` (its
-inertia is that factorization's where inertia is asked for). The default ``1e-15`` is four to
-nine units in the last place of coordinates of order one. A step the solve could not give
-(no descent: ``-r`` scaled, :meth:`~.system.KKTSystem.step`) is not tested; the test is tried
-at the last allowed Newton step too.
+That floor grows with the number of vertices while ``|grad E|`` falls, so on fine meshes it
+lies above ``tol_grad |grad E|`` (the protocol's ``tol_grad = 1e-9`` is reached down to the
+floor at about 40k vertices). Hence two more tests, each of which, with the energy test,
+converges as the gradient test does (the inertia is then asked as there):
+
+- the floor test: ``|r| <= tol_floor rho``, with ``rho`` the floor measured at the point,
+  the change of ``r`` when every coordinate changes by one unit in the last place (seeded
+  random signs, the smaller of two patterns: :meth:`~.system.KKTSystem.gradient_floor`).
+  Rounding the exact minimum to the nearest representable point leaves ``|r|`` about
+  ``0.29 rho`` (the rms of a uniform rounding error of half a unit), so with ``tol_floor =
+  1`` a point passes when its gradient is no larger than the change one unit in the last
+  place makes: its gradient cannot tell it from a rounded minimum. The message is
+  :data:`AT_FLOOR`.
+- the step test (Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization*,
+  SIAM 1996, §7.2): a point whose exact Newton step (unshifted, double precision) moves no
+  vertex by more than ``tol_step`` times the largest vertex distance from the origin, after
+  a step that changed the energy by at most ``tol_energy |E|``, is the minimum to the
+  precision of its coordinates, with the message :data:`AT_RESOLUTION` (its inertia is that
+  factorization's where inertia is asked for). The default ``1e-15`` is four to nine units
+  in the last place of coordinates of order one. A step the solve could not give (no
+  descent: ``-r`` scaled, :meth:`~.system.KKTSystem.step`) is not tested; the test is tried
+  at the last allowed Newton step too. After buckling, the exact step along the soft modes
+  of a point at the floor can exceed ``tol_step``, so on fine meshes the floor test is the
+  one that ends those minimizations.
 
 Uncertified minima
 ------------------
@@ -146,6 +159,9 @@ ABANDONED = "abandoned"
 
 AT_RESOLUTION = "converged (the Newton step is below the resolution of the coordinates)"
 """Message of a minimization that ended on the step test ("Convergence")."""
+
+AT_FLOOR = "converged (the projected gradient is at its round-off floor)"
+"""Message of a minimization that ended on the floor test ("Convergence")."""
 
 
 
@@ -224,6 +240,8 @@ class NewtonState:
     success: bool = False
     message: str | None = None
     certificate: str | None = None
+    floor: float | None = None  # the gradient's round-off floor, last measured
+    at_floor: bool = False  # the gradient test holds by the floor test
 
 
 def newton(energy, volume, X0, V_target, options: NewtonOptions | None = None, *,
@@ -370,14 +388,16 @@ def _evaluate(m: Minimization, st: NewtonState) -> None:
     o = m.options
     st.lam, st.r, gE, st.gV = m.system.gradients(st.X)
     st.r_norm = float(np.linalg.norm(st.r))
-    st.grad_ok = st.r_norm <= o.tol_grad * float(np.linalg.norm(gE)) + o.atol_grad
+    st.at_floor = False
+    st.grad_ok = (st.r_norm <= o.tol_grad * float(np.linalg.norm(gE)) + o.atol_grad
+                  or _at_floor(m, st))
     st.converged = st.grad_ok and (st.dE is None or abs(st.dE) <= o.tol_energy * abs(st.E))
     if st.previous is not None:
         st.pairs.add(st.X - st.previous[0], st.r - st.previous[1])
     st.r_history.append((st.r_norm, st.E))
     st.evaluated = True
     if st.converged and (not m.want_inertia or _certified(st.fact, st.X, o.inertia_step * m.edge)):
-        st.success, st.message = True, "converged"
+        st.success, st.message = True, _converged(st)
         st.inertia = 0 if m.want_inertia else None
         st.certificate = st.fact.precision if m.want_inertia else None
         return
@@ -418,7 +438,7 @@ def _newton_step(m: Minimization, st: NewtonState) -> Step | None:
         return None
     o, system = m.options, m.system
     if st.converged and (not o.escape_saddles or st.inertia == 0 or not indefinite):
-        st.success, st.message = True, "converged"
+        st.success, st.message = True, _converged(st)
         st.certificate = st.fact.precision if st.mu == 0.0 and st.inertia == 0 else None
         return None
     s, slope_s, curv_s, solved = system.step(st.X, st.r, m.volume.value(st.X) - m.V_target)
@@ -480,6 +500,25 @@ def _factor(m: Minimization, st: NewtonState) -> bool | None:
     st.pairs.clear()
     st.r_history = [(st.r_norm, st.E)]
     return indefinite
+
+
+def _at_floor(m: Minimization, st: NewtonState) -> bool:
+    """The floor test of "Convergence": whether ``|r|`` at the point is at most ``tol_floor``
+    times the gradient's round-off floor there. The floor is measured at the first point that
+    fails the gradient test and again at every point whose ``|r|`` is below ``tol_floor``
+    times the last measured floor (it changes little along a minimization), so a
+    minimization away from its floor pays two gradients for the test."""
+    o = m.options
+    if not o.tol_floor or (st.floor is not None and st.r_norm > o.tol_floor * st.floor):
+        return False
+    st.floor = m.system.gradient_floor(st.X, st.r)
+    st.at_floor = st.r_norm <= o.tol_floor * st.floor
+    return st.at_floor
+
+
+def _converged(st: NewtonState) -> str:
+    """The message of a minimization that converged on the gradient or the floor test."""
+    return AT_FLOOR if st.at_floor else "converged"
 
 
 def _at_resolution(m: Minimization, st: NewtonState, s: np.ndarray, indefinite: bool) -> bool:

@@ -33,6 +33,9 @@ class NewtonOptions:
         ``tol_step``: or the unshifted double-precision Newton step moves no vertex by more
         than ``tol_step`` times the largest vertex distance from the origin (the gradient's
         round-off floor, :mod:`.newton` "Convergence"; 0: no step test);
+        ``tol_floor``: or ``|r|`` is at most ``tol_floor`` times the gradient's measured
+        round-off floor, the change of ``r`` under a change of every coordinate by one unit
+        in the last place (:mod:`.newton` "Convergence"; 0: no floor test);
         ``max_iter``: Newton steps (factorizations of ``K``) at most, the quasi-Newton and
         relaxation steps not counted (the relaxation takes at most ``max_iter // 2``).
     What is shown at the end
@@ -86,6 +89,7 @@ class NewtonOptions:
     atol_grad: float = 1e-10
     tol_energy: float = 1e-10
     tol_step: float = 1e-15
+    tol_floor: float = 1.0
     max_iter: int = 100
     project_rigid: bool = True
     escape_saddles: bool = True
