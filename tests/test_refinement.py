@@ -321,6 +321,43 @@ def test_bad_input_exits_2_in_one_line_and_creates_nothing(tmp_path, capsys, arg
     assert not out.exists()
 
 
+def test_a_folder_of_other_runs_is_refused_before_any_work(study, tmp_path, capsys,
+                                                           monkeypatch):
+    import shutil
+
+    from shellbuckle import sweep as sweep_module
+
+    started = []
+    monkeypatch.setattr(sweep_module, "run_sweep", lambda *a, **k: started.append(1))
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("not a sweep")
+    assert cli_main(["refine", *ARGS, "--out", str(other)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--out {other}" in err and "not a shellbuckle sweep" in err
+    assert len(err.splitlines()) == 1 and sorted(p.name for p in other.iterdir()) == ["notes.txt"]
+    # a study folder whose record names a run of these options with other parameters
+    study = shutil.copytree(study, tmp_path / "study")
+    sweep = json.loads((study / "sweep.json").read_text())
+    name = next(iter(sweep["runs"]))
+    sweep["runs"][name]["seed"] = 7
+    (study / "sweep.json").write_text(json.dumps(sweep))
+    before = (study / "sweep.json").read_text()
+    assert cli_main(["refine", *ARGS, "--out", str(study)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "other parameters" in err and len(err.splitlines()) == 1
+    assert (study / "sweep.json").read_text() == before and not started
+
+
+def test_a_value_error_of_the_work_is_a_failure_not_bad_input(study, capsys, monkeypatch):
+    def fails(*args, **kwargs):
+        raise ValueError("a singular matrix in the carry")
+
+    monkeypatch.setattr(refinement, "run_study", fails)
+    assert cli_main(["refine", *ARGS, "--out", str(study)]) == 1
+    assert "a singular matrix in the carry" in capsys.readouterr().err
+
+
 def test_a_dent_born_polygonal_is_said_so():
     rows = [("primary_dV_over_V", 3594, 0.0428), ("axisymmetry_loss_dV_over_V", 3594, 0.0428),
             ("primary_dV_over_V", 10000, 0.0429), ("axisymmetry_loss_dV_over_V", 10000, 0.2),

@@ -48,8 +48,8 @@ from pathlib import Path
 
 from .protocol.spec import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
-from .store.catalogue import (Catalogue, analysis_complete, read_attempts, record_attempt,
-                              write_sweep_file)
+from .store.catalogue import (Catalogue, analysis_complete, check_sweep_folder, read_attempts,
+                              record_attempt, write_sweep_file)
 from .util import now
 
 log = logging.getLogger(__name__)
@@ -815,8 +815,7 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
         _integer("workers", workers, 1, "integers >= 1")
     out_dir = Path(out_dir)
     points = spec.points()
-    write_sweep_file(out_dir, spec.to_dict(),
-                     {p["name"]: {k: v for k, v in p.items() if k != "name"} for p in points})
+    write_sweep_file(out_dir, spec.to_dict(), _runs(points))
     catalogue = Catalogue(out_dir)
     todo = []
     for p in points:
@@ -834,6 +833,18 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
         _execute(todo, out_dir, catalogue, scheduler=scheduler, workers=workers,
                  progress=progress, analyze=analyze, total=len(points))
     return catalogue.write()
+
+
+def check_sweep(spec: SweepSpec, out_dir) -> None:
+    """The refusals of :func:`run_sweep` for the folder ``out_dir`` (ValueError: a file, a
+    non-empty folder that is no sweep, a run name there that stands for other parameters),
+    before any work and without writing."""
+    check_sweep_folder(Path(out_dir), _runs(spec.points()))
+
+
+def _runs(points) -> dict[str, dict]:
+    """The points of a sweep by run name, as ``sweep.json`` holds them."""
+    return {p["name"]: {k: v for k, v in p.items() if k != "name"} for p in points}
 
 
 def _execute(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, progress,

@@ -126,11 +126,18 @@ def _cmd(args) -> int:
         with the_work():
             table = refinement.report(args.out, paths)
     else:
+        from ..sweep import check_sweep
+
         options = _options(_with_defaults(args))
         _out(args.out)
-        # not the_work(): the sweep refuses a folder of other runs (bad input) with ValueError
-        table = refinement.run_study(args.out, workers=args.workers, progress=not args.quiet,
-                                     carry_states=args.carry, **options)
+        try:  # a folder of other runs: bad input, refused before any work
+            check_sweep(refinement.study_spec(**options), args.out)
+        except ValueError as exc:
+            raise ValueError(f"--out {args.out}: {exc}") from None
+        with the_work():
+            table = refinement.run_study(args.out, workers=args.workers,
+                                         progress=not args.quiet, carry_states=args.carry,
+                                         **options)
     out = Path(args.out)
     print(f"refinement {out}: {table.groupby(refinement.GROUP).ngroups} groups, "
           f"{table['n_vertices'].nunique()} mesh sizes")

@@ -121,37 +121,50 @@ def read_sweep_file(out_dir) -> dict:
     return check_format(data, out_dir / SWEEP_JSON, FORMAT_NAME, FORMAT_VERSION)
 
 
+def check_sweep_folder(out_dir, runs: dict[str, dict]) -> dict | None:
+    """The sweep ``out_dir`` holds (``None`` for a new or empty folder), after the refusals
+    of :func:`write_sweep_file` (ValueError): a file, a non-empty folder that is no sweep, a
+    run name of ``runs`` that stands for other parameters there. Writes nothing."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir} is an existing file; a sweep needs a folder")
+    if not (out_dir / SWEEP_JSON).exists():
+        if out_dir.exists() and any(os.scandir(out_dir)):
+            raise ValueError(f"{out_dir} is a non-empty folder that is not a shellbuckle sweep; "
+                             "choose a new or empty folder with --out")
+        return None
+    data = read_sweep_file(out_dir)
+    runs = json.loads(json.dumps(runs))
+    for name, point in runs.items():
+        held = data["runs"].get(name)
+        if held is not None and held != point:
+            diff = sorted(k for k in set(held) | set(point) if held.get(k) != point.get(k))
+            shown = ", ".join(f"{k}: stored {held.get(k)!r}, requested {point.get(k)!r}"
+                              for k in diff)
+            raise ValueError(f"{out_dir} already has a run {name!r} with other parameters "
+                             f"({shown}); use another --out folder")
+    return data
+
+
 def write_sweep_file(out_dir, spec: dict, runs: dict[str, dict]) -> dict:
     """Record a sweep in ``OUT/sweep.json``; returns the merged contents.
 
     ``spec`` is the sweep's description (JSON), ``runs`` its points by run name. A folder that
     already holds a sweep keeps its runs and gains the new ones, so a sweep can be extended
     (more gammas, more seeds) in the same folder; a name that already stands for other
-    parameters is refused (ValueError naming it), as is a non-empty folder that is no sweep.
+    parameters is refused (ValueError naming it), as is a non-empty folder that is no sweep
+    (:func:`check_sweep_folder`).
     """
     out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"{out_dir} is an existing file; a sweep needs a folder")
+    data = check_sweep_folder(out_dir, runs)
     runs = json.loads(json.dumps(runs))
     spec = json.loads(json.dumps(spec))
-    if (out_dir / SWEEP_JSON).exists():
-        data = read_sweep_file(out_dir)
-        for name, point in runs.items():
-            held = data["runs"].get(name)
-            if held is not None and held != point:
-                diff = sorted(k for k in set(held) | set(point) if held.get(k) != point.get(k))
-                shown = ", ".join(f"{k}: stored {held.get(k)!r}, requested {point.get(k)!r}"
-                                  for k in diff)
-                raise ValueError(f"{out_dir} already has a run {name!r} with other parameters "
-                                 f"({shown}); use another --out folder")
+    if data is not None:
         if spec not in data["specs"]:
             data["specs"].append(spec)
         data["runs"].update(runs)
         data["updated"] = now()
     else:
-        if out_dir.exists() and any(os.scandir(out_dir)):
-            raise ValueError(f"{out_dir} is a non-empty folder that is not a shellbuckle sweep; "
-                             "choose a new or empty folder with --out")
         out_dir.mkdir(parents=True, exist_ok=True)
         data = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "created": now(),
                 "updated": now(), "specs": [spec], "runs": runs}
