@@ -235,3 +235,32 @@ def test_refusals_and_help_do_not_load_the_energies_or_the_solvers(argv, tmp_pat
     assert not (tmp_path / "x").exists() and not (tmp_path / "runs").exists()
     if "--help" not in argv:
         assert out.stderr.count("\n") == 1 and argv[1] in out.stderr
+
+
+# --------------------------------------------------------------------------- exit codes
+
+@pytest.mark.parametrize("command, module, name, argv", [
+    ("classify", "shellbuckle.analysis", "classify", ["RUN"]),
+    ("export", "shellbuckle.export", "export_step", ["RUN", "--step", "1", "--format", "vtu",
+                                                     "--out", "OUT/s.vtu"]),
+    ("export", "shellbuckle.export", "export_series", ["RUN", "--format", "xdmf",
+                                                       "--out", "OUT/s.xdmf"]),
+    ("animate", "shellbuckle.plots.animation", "animate_run", ["RUN", "--out", "OUT/a.gif"]),
+    ("plot", "shellbuckle.plots.run", "plot_deflation", ["RUN", "--out", "OUT"]),
+])
+def test_a_value_error_of_the_work_exits_1_and_bad_input_2(small_run, tmp_path, capsys,
+                                                            monkeypatch, command, module, name,
+                                                            argv):
+    # bad input is refused (exit 2) before any work; a ValueError raised by the work itself
+    # (a singular matrix, a shape it cannot handle) is a failure of accepted input (exit 1)
+    def fails(*args, **kwargs):
+        raise ValueError("the work failed here")
+
+    monkeypatch.setattr(importlib.import_module(module), name, fails)
+    typed = [str(small_run.path) if a == "RUN" else a.replace("OUT", str(tmp_path / "out"))
+             for a in argv]
+    (tmp_path / "out").mkdir()
+    assert main([command, *typed]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "the work failed here" in err and len(err.splitlines()) == 1
+    assert main([command, str(tmp_path / "no such run"), *typed[1:]]) == 2

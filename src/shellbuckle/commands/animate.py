@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._checks import Range, add_command, add_number, output_file, run_folder
+from ._checks import Range, add_command, add_number, output_file, run_folder, the_work
 
 #: Frames per second of the animation.
 FPS = Range(1, 60, integer=True, reason="a frame per second at least; screens show at most 60")
@@ -56,7 +56,8 @@ def _cmd(args) -> int:
     run = run_folder("DIR", args.dir)
     if not run.steps:
         raise ValueError(f"DIR {args.dir}: holds a run with no finished step yet")
-    path = animate_run(run, out, fps=fps, every=args.every, dpi=args.dpi)
+    with the_work():
+        path = animate_run(run, out, fps=fps, every=args.every, dpi=args.dpi)
     n = len(frame_steps(run.steps, args.every))
     print(f"{path} ({n} frames, {fps} per second)")
     return 0

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._checks import add_command, add_number, input_file, run_folder
+from ._checks import add_command, add_number, input_file, run_folder, the_work
 from ._options import stored_step
 
 
@@ -28,7 +28,8 @@ def _cmd(args) -> int:
     from ..analysis import classify
 
     X, faces, source = _conformation(args.file, args.step)
-    c = classify(X, faces)
+    with the_work():
+        c = classify(X, faces)
     if args.json:
         from ._output import print_json
 

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from ._checks import add_command, add_number, output_file, run_folder
+from ._checks import add_command, add_number, output_file, run_folder, the_work
 from ._options import stored_step
 
 
@@ -50,7 +50,8 @@ def _cmd(args) -> int:
     step = stored_step(run, args.step)
     out = args.out if args.out else default_export_path(run, step, fmt)
     output_file("--out", out)
-    path = export_step(run, step, out, fmt=fmt)
+    with the_work():
+        path = export_step(run, step, out, fmt=fmt)
     print(f"step {step} of {run.path} written to {path}")
     return 0
 
@@ -66,7 +67,8 @@ def _series(args, fmt: str) -> int:
         raise ValueError(f"DIR {args.dir}: holds a run with no finished step yet")
     out = args.out if args.out else default_series_path(run, fmt)
     output_file("--out", out, suffixes=(SERIES_FORMATS[fmt],))
-    path = export_series(run, out, fmt=fmt)
+    with the_work():
+        path = export_series(run, out, fmt=fmt)
     print(f"{len(run.steps)} steps of {run.path} written to {path} and "
           f"{path.with_suffix('.h5')}")
     return 0

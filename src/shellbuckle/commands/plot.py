@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from ._checks import add_command, add_number, input_file, output_folder, run_folder
+from ._checks import add_command, add_number, input_file, output_folder, run_folder, the_work
 
 log = logging.getLogger(__name__)
 
@@ -106,8 +106,6 @@ def _check_materials(runs) -> None:
 
 def _cmd(args) -> int:
     from ..plots import paper
-    from ..plots.pv import family, plot_pv
-    from ..plots.run import plot_deflation
 
     formats = _formats(args.formats)
     if (args.potato is None) != (args.capsule is None):
@@ -134,6 +132,21 @@ def _cmd(args) -> int:
 
             plt.close(fig)
 
+    with the_work():
+        _figures(args, runs, potato, pair, reference, save, out, formats, written)
+    for path in written:
+        print(path)
+    return 0
+
+
+def _figures(args, runs, potato, pair, reference, save, out: Path, formats,
+             written: list) -> None:
+    """Every figure the options ask for, each given to ``save(fig, stem)`` (the across-run
+    figures are written in ``out`` and their paths added to ``written``)."""
+    from ..plots import paper
+    from ..plots.pv import family, plot_pv
+    from ..plots.run import plot_deflation
+
     units = args.units
     for run, stem in zip(runs, _stems(runs)):
         save(plot_deflation(run, units=units), f"{stem}_run")
@@ -151,9 +164,6 @@ def _cmd(args) -> int:
              "fig03_potato_capsule")
     if pair is not None:
         save(paper.fig11_paths(*pair, at=args.at, reference=reference), "fig11_paths")
-    for path in written:
-        print(path)
-    return 0
 
 
 def _across(paths, out: Path, formats, reference) -> list[Path]:
