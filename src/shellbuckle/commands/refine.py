@@ -126,10 +126,10 @@ def _cmd(args) -> int:
         with the_work():
             table = refinement.report(args.out, paths)
     else:
-        from ..sweep import check_sweep
-
         options = _options(_with_defaults(args))
         _out(args.out)
+        from ..sweep import check_sweep
+
         try:  # a folder of other runs: bad input, refused before any work
             check_sweep(refinement.study_spec(**options), args.out)
         except ValueError as exc:
