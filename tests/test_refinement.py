@@ -659,27 +659,27 @@ def test_a_worker_that_dies_stops_the_carry_with_its_reason(two_seeds, tmp_path)
     import shutil
     import signal
     import threading
-    import time
 
     out = tmp_path / "study"
     shutil.copytree(two_seeds, out)
 
     before = {child.pid for child in multiprocessing.active_children()}
+    done = threading.Event()
 
-    def kill_workers():  # as soon as they are there (they take a second to start)
-        for _ in range(600):
-            children = [c for c in multiprocessing.active_children() if c.pid not in before]
-            if children:
-                for child in children:
+    def kill_workers():  # each as soon as it is there (they start one after the other)
+        while not done.wait(0.01):
+            for child in multiprocessing.active_children():
+                if child.pid not in before:
                     os.kill(child.pid, signal.SIGKILL)
-                return
-            time.sleep(0.01)
 
     killer = threading.Thread(target=kill_workers)
     killer.start()
-    with pytest.raises(RuntimeError, match="died .exit code -9"):
-        refinement.carry(out, at=0.019, workers=2)
-    killer.join()
+    try:
+        with pytest.raises(RuntimeError, match="died .exit code -9"):
+            refinement.carry(out, at=0.019, workers=2)
+    finally:
+        done.set()
+        killer.join()
     assert {c.pid for c in multiprocessing.active_children()} <= before
     assert refinement.read_carried(out) == {}
 
