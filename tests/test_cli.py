@@ -264,3 +264,13 @@ def test_a_value_error_of_the_work_exits_1_and_bad_input_2(small_run, tmp_path, 
     err = capsys.readouterr().err.strip()
     assert "the work failed here" in err and len(err.splitlines()) == 1
     assert main([command, str(tmp_path / "no such run"), *typed[1:]]) == 2
+
+
+def test_an_export_suffix_that_does_not_match_its_format_is_bad_input(small_run, tmp_path,
+                                                                     capsys):
+    out = tmp_path / "s.ply"
+    assert main(["export", str(small_run.path), "--step", "1", "--format", "vtu",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--out {out}" in err and ".vtu" in err and len(err.splitlines()) == 1
+    assert not out.exists()

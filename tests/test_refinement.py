@@ -670,7 +670,10 @@ def test_a_worker_that_dies_stops_the_carry_with_its_reason(two_seeds, tmp_path)
         while not done.wait(0.01):
             for child in multiprocessing.active_children():
                 if child.pid not in before:
-                    os.kill(child.pid, signal.SIGKILL)
+                    try:
+                        os.kill(child.pid, signal.SIGKILL)
+                    except ProcessLookupError:  # reaped meanwhile
+                        pass
 
     killer = threading.Thread(target=kill_workers)
     killer.start()

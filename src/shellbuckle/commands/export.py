@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ._checks import add_command, add_number, output_file, run_folder, the_work
 from ._options import stored_step
 
@@ -50,6 +52,10 @@ def _cmd(args) -> int:
     step = stored_step(run, args.step)
     out = args.out if args.out else default_export_path(run, step, fmt)
     output_file("--out", out)
+    suffix = Path(out).suffix.lower()
+    if suffix not in ("", FORMATS[fmt]):
+        raise ValueError(f"--out {out}: the suffix {suffix} does not match --format {fmt}; "
+                         f"allowed: {FORMATS[fmt]} or none (it is added)")
     with the_work():
         path = export_step(run, step, out, fmt=fmt)
     print(f"step {step} of {run.path} written to {path}")

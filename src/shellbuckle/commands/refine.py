@@ -133,7 +133,8 @@ def _cmd(args) -> int:
         try:  # a folder of other runs: bad input, refused before any work
             check_sweep(refinement.study_spec(**options), args.out)
         except ValueError as exc:
-            raise ValueError(f"--out {args.out}: {exc}") from None
+            reason = str(exc).removeprefix(f"{Path(args.out)} ")
+            raise ValueError(f"--out {args.out}: {reason}") from None
         with the_work():
             table = refinement.run_study(args.out, workers=args.workers,
                                          progress=not args.quiet, carry_states=args.carry,

@@ -497,6 +497,7 @@ def _factor(m: Minimization, st: NewtonState) -> bool | None:
         return None
     st.mu, st.inertia, indefinite = shift
     st.fact, st.n_quasi, st.quasi_ok = Factored(st.X, st.mu, st.inertia, precision), 0, True
+    st.floor = None  # measured again at the next point
     st.pairs.clear()
     st.r_history = [(st.r_norm, st.E)]
     return indefinite
@@ -505,9 +506,9 @@ def _factor(m: Minimization, st: NewtonState) -> bool | None:
 def _at_floor(m: Minimization, st: NewtonState) -> bool:
     """The floor test of "Convergence": whether ``|r|`` at the point is at most ``tol_floor``
     times the gradient's round-off floor there. The floor is measured at the first point that
-    fails the gradient test and again at every point whose ``|r|`` is below ``tol_floor``
-    times the last measured floor (it changes little along a minimization), so a
-    minimization away from its floor pays two gradients for the test."""
+    fails the gradient test after the start and after each factorization, and at every point
+    whose ``|r|`` is below ``tol_floor`` times the last measured floor (it changes little
+    along a minimization), so the test costs two gradients per factorization."""
     o = m.options
     if not o.tol_floor or (st.floor is not None and st.r_norm > o.tol_floor * st.floor):
         return False
