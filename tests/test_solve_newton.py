@@ -430,16 +430,22 @@ def test_keywords_are_the_options_of_the_same_name():
         assert [h["step"] for h in a.history] == [h["step"] for h in other.history]
 
 
+def floor_problem():
+    """``(energy, volume, X0, V, plain)``: a start near the minimum of a shell at 97 % of its
+    volume, and that minimum by the plain gradient test at tol_grad = 1e-12."""
+    mesh, energy, volume, V0 = shell(4, 2333)
+    V = 0.97 * V0
+    X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
+    return energy, volume, X0, V, newton(energy, volume, X0, V, tol_grad=1e-12)
+
+
 def test_a_gradient_test_below_the_round_off_floor_ends_on_the_step_test():
     # tol_grad = atol_grad = 0 asks for a gradient the coordinates cannot resolve (the floor
     # of 160k-vertex meshes at the protocol's tolerance); the floor test is off. Oracles: the
     # minimum of the plain gradient test (energy, positions to the coordinates' precision),
     # the exact Newton step at the end (below tol_step of |X|), and the same run without the
     # step test, which stalls
-    mesh, energy, volume, V0 = shell(4, 2333)
-    V = 0.97 * V0
-    X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
-    plain = newton(energy, volume, X0, V, tol_grad=1e-12)
+    energy, volume, X0, V, plain = floor_problem()
     floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_floor=0.0,
                    max_iter=40)
     assert plain.success and floor.success and floor.message == AT_RESOLUTION
@@ -485,10 +491,7 @@ def test_a_gradient_test_below_the_round_off_floor_ends_on_the_floor_test():
     # as above, with the floor test on and the step test off. Oracles: the minimum of the
     # plain gradient test; |r| at the end within the floor measured there with other sign
     # patterns; no more steps than the step test takes to the same minimum
-    mesh, energy, volume, V0 = shell(4, 2333)
-    V = 0.97 * V0
-    X0 = 0.97 ** (1 / 3) * mesh.X + 1e-3 * np.random.default_rng(2).standard_normal(mesh.X.shape)
-    plain = newton(energy, volume, X0, V, tol_grad=1e-12)
+    energy, volume, X0, V, plain = floor_problem()
     floor = newton(energy, volume, X0, V, tol_grad=0.0, atol_grad=0.0, tol_step=0.0,
                    max_iter=40)
     assert floor.success and floor.message == AT_FLOOR
