@@ -7,12 +7,12 @@ Run from the repository root, on run folders (a run of each mesh size to compare
 For each step of each run, at its stored positions and with its run's energy (convention,
 spontaneous curvature, parameters): the projected gradient ``|r|`` (``r = grad E - lam grad V``,
 ``lam`` the least-squares multiplier), the protocol's gradient test ``tol |grad E| +
-atol_grad`` (``tol`` from the run's protocol, Newton's ``atol_grad``), the round-off floor ``rho`` of :func:`shellbuckle.solve.system.
-gradient_floor` (the change of ``r`` when every coordinate changes by one unit in the last
-place, the smaller over two seeded sign patterns) and ``|r| / rho``. Rounding an exact
-minimum to the nearest representable point leaves ``|r|`` about ``0.29 rho``; a minimization
-that reaches the floor stops there by the floor test (``shellbuckle.solve.newton``,
-"Convergence"). Then the floor over the runs, with its growth exponent in the number of
+atol_grad`` (``tol`` from the run's protocol, Newton's ``atol_grad``), the round-off floor
+``rho`` of :func:`shellbuckle.solve.system.gradient_floor` (the change of ``r`` when every
+coordinate changes by one unit in the last place, the smaller over two seeded sign patterns)
+and ``|r| / rho``. Rounding an exact minimum to the nearest representable point leaves ``|r|``
+about ``0.29 rho``; a minimization that reaches the floor stops there by the floor test
+(``shellbuckle.solve.newton``, "Convergence"). Then the floor over the runs, with its growth exponent in the number of
 vertices. No timing is printed.
 """
 

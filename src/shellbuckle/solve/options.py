@@ -61,8 +61,8 @@ class NewtonOptions:
     Steps
         ``max_step``: largest vertex displacement of one step (``None``: ``0.2 R_eq``, the
         radius of the sphere of the target volume); ``inverse_iterations``: steps of the
-        inverse iteration for a negative-curvature direction; ``seed``: its start vector (and the sign
-        patterns of the gradient's round-off floor);
+        inverse iteration for a negative-curvature direction; ``seed``: its start vector
+        (and the sign patterns of the gradient's round-off floor);
         ``max_quasi``, ``memory``: quasi-Newton steps per factorization and their secant
         pairs (``max_quasi = 0``: plain Newton); ``quasi_min_alpha``: a quasi-Newton step cut
         below this fraction of its length ends the reuse of a factorization; ``jam_steps``:
