@@ -12,8 +12,8 @@ atol_grad`` (``tol`` from the run's protocol, Newton's ``atol_grad``), the round
 coordinate changes by one unit in the last place, the smaller over two seeded sign patterns)
 and ``|r| / rho``. Rounding an exact minimum to the nearest representable point leaves ``|r|``
 about ``0.29 rho``; a minimization that reaches the floor stops there by the floor test
-(``shellbuckle.solve.newton``, "Convergence"). Then the floor over the runs, with its growth exponent in the number of
-vertices. No timing is printed.
+(``shellbuckle.solve.newton``, "Convergence"). Then the floor over the runs, with its growth
+exponent in the number of vertices. No timing is printed.
 """
 
 from __future__ import annotations
