@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["FORMATS", "SERIES_FORMATS", "RunFields", "export_step", "export_conformation",
            "export_series", "field_data", "run_metadata", "step_metadata", "resolve_step",
-           "default_export_path", "default_series_path"]
+           "default_export_path", "default_series_path", "format_of"]
 
 #: format name -> file extension
 FORMATS = {"vtk": ".vtk", "vtu": ".vtu", "ply": ".ply", "obj": ".obj", "stl": ".stl", "fe": ".fe"}
@@ -146,7 +146,10 @@ class RunFields:
         return np.asarray(X, dtype=np.float64) - self.X0
 
 
-def _format_of(path: Path, fmt) -> tuple[Path, str]:
+def format_of(path: Path, fmt) -> tuple[Path, str]:
+    """``(path, format)`` of an export: the format from the extension when ``fmt`` is None,
+    else ``fmt`` with its extension added to a path without one (ValueError: an unknown
+    format, or an extension that is not the format's)."""
     allowed = ", ".join(FORMATS)
     ext = path.suffix.lower()
     if fmt is None:
@@ -181,7 +184,7 @@ def export_step(run, step: int, path, fmt: str | None = None) -> Path:
     docstring). Raises ``ValueError`` for a step that is not stored or an unknown format.
     """
     run = _open(run)
-    path, fmt = _format_of(Path(path), fmt)
+    path, fmt = format_of(Path(path), fmt)
     step = resolve_step(run, step)
     record = run.store.record(step)
     path = _write(run, run.positions(step), path, fmt,
@@ -199,7 +202,7 @@ def export_conformation(run, X, path, fmt: str | None = None, *, values: dict | 
     carries the run's parameters and ``values`` (numbers, e.g. ``dV_over_V`` and
     ``E_over_kappa``) as field data, an ``fe`` file says ``what`` in its title."""
     run = _open(run)
-    path, fmt = _format_of(Path(path), fmt)
+    path, fmt = format_of(Path(path), fmt)
     X = np.asarray(X, dtype=np.float64)
     if X.shape != (run.store.n_vertices, 3):
         raise ValueError(f"positions of shape {X.shape} are not a conformation of the "

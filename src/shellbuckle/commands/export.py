@@ -37,7 +37,8 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    from ..export import FORMATS, SERIES_FORMATS, default_export_path, export_step
+    from ..export import (FORMATS, SERIES_FORMATS, default_export_path, export_step,
+                          format_of)
 
     fmt = args.fmt.lower().lstrip(".")
     if fmt not in FORMATS and fmt not in SERIES_FORMATS:
@@ -52,10 +53,10 @@ def _cmd(args) -> int:
     step = stored_step(run, args.step)
     out = args.out if args.out else default_export_path(run, step, fmt)
     output_file("--out", out)
-    suffix = Path(out).suffix.lower()
-    if suffix not in ("", FORMATS[fmt]):
-        raise ValueError(f"--out {out}: the suffix {suffix} does not match --format {fmt}; "
-                         f"allowed: {FORMATS[fmt]} or none (it is added)")
+    try:  # the extension of --out: the export's own rule, before the work
+        format_of(Path(out), fmt)
+    except ValueError as exc:
+        raise ValueError(f"--out {out}: {exc}") from None
     with the_work():
         path = export_step(run, step, out, fmt=fmt)
     print(f"step {step} of {run.path} written to {path}")

@@ -106,6 +106,8 @@ def _check_materials(runs) -> None:
 
 def _cmd(args) -> int:
     from ..plots import paper
+    from ..plots.pv import family, plot_pv
+    from ..plots.run import plot_deflation
 
     formats = _formats(args.formats)
     if (args.potato is None) != (args.capsule is None):
@@ -132,38 +134,27 @@ def _cmd(args) -> int:
 
             plt.close(fig)
 
-    with the_work():
-        _figures(args, runs, potato, pair, reference, save, out, formats, written)
+    with the_work():  # a ValueError of the figures is a failure, the input was accepted
+        units = args.units
+        for run, stem in zip(runs, _stems(runs)):
+            save(plot_deflation(run, units=units), f"{stem}_run")
+            save(paper.fig9_energy([run], units=units), f"{stem}_fig09_energy")
+            save(paper.run_gallery(run, every=args.every, units=units), f"{stem}_gallery")
+            # p vs dV/V, with the run's branches beside it
+            save(plot_pv(family(run), units=units), f"{stem}_pv")
+        if len(runs) > 1:
+            at = paper.GALLERY_DV_OVER_V if args.at is None else args.at
+            save(paper.fig7_gallery(runs, at=at, reference=reference), "fig07_gallery")
+            save(paper.fig9_energy(runs, units=units), "fig09_energy")
+            written.extend(_across([Path(r.path) for r in runs], out, formats, reference))
+        if potato is not None:
+            save(paper.fig3_potato_capsule(*potato, at=args.at, reference=reference),
+                 "fig03_potato_capsule")
+        if pair is not None:
+            save(paper.fig11_paths(*pair, at=args.at, reference=reference), "fig11_paths")
     for path in written:
         print(path)
     return 0
-
-
-def _figures(args, runs, potato, pair, reference, save, out: Path, formats,
-             written: list) -> None:
-    """Every figure the options ask for, each given to ``save(fig, stem)`` (the across-run
-    figures are written in ``out`` and their paths added to ``written``)."""
-    from ..plots import paper
-    from ..plots.pv import family, plot_pv
-    from ..plots.run import plot_deflation
-
-    units = args.units
-    for run, stem in zip(runs, _stems(runs)):
-        save(plot_deflation(run, units=units), f"{stem}_run")
-        save(paper.fig9_energy([run], units=units), f"{stem}_fig09_energy")
-        save(paper.run_gallery(run, every=args.every, units=units), f"{stem}_gallery")
-        # p vs dV/V, with the run's branches beside it
-        save(plot_pv(family(run), units=units), f"{stem}_pv")
-    if len(runs) > 1:
-        at = paper.GALLERY_DV_OVER_V if args.at is None else args.at
-        save(paper.fig7_gallery(runs, at=at, reference=reference), "fig07_gallery")
-        save(paper.fig9_energy(runs, units=units), "fig09_energy")
-        written.extend(_across([Path(r.path) for r in runs], out, formats, reference))
-    if potato is not None:
-        save(paper.fig3_potato_capsule(*potato, at=args.at, reference=reference),
-             "fig03_potato_capsule")
-    if pair is not None:
-        save(paper.fig11_paths(*pair, at=args.at, reference=reference), "fig11_paths")
 
 
 def _across(paths, out: Path, formats, reference) -> list[Path]:
