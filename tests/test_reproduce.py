@@ -167,3 +167,14 @@ def test_bad_input_exits_2_before_any_run(tmp_path, capsys, argv, fragment):
     err = capsys.readouterr().err
     assert code == 2 and fragment in err and "Traceback" not in err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_value_error_of_the_work_is_a_failure_not_bad_input(tmp_path, capsys, monkeypatch):
+    from shellbuckle import reproduce
+
+    def fails(*args, **kwargs):
+        raise ValueError("a singular matrix in a worker")
+
+    monkeypatch.setattr(reproduce, "reproduce_paper", fails)
+    code = main(["reproduce-paper", "--quick", "--out", str(tmp_path / "x"), "--quiet"])
+    assert code == 1 and "a singular matrix in a worker" in capsys.readouterr().err

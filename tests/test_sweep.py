@@ -175,6 +175,47 @@ def test_cli_bad_input_exits_2_before_any_work(tmp_path, capsys, argv, named):
     assert not out.exists()
 
 
+
+def test_cli_refuses_a_folder_of_other_runs_naming_out_before_any_work(tmp_path, capsys,
+                                                                       monkeypatch):
+    from shellbuckle import sweep as sweep_module
+
+    started = []
+    monkeypatch.setattr(sweep_module, "run_sweep", lambda *a, **k: started.append(1))
+    argv = ["sweep", "--gamma", "271", "--icosphere", "3", "--quiet"]
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    assert cli_main([*argv, "--out", str(other)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count(f"--out {other}:") == 1 and "not a shellbuckle sweep" in err
+    assert len(err.splitlines()) == 1 and [p.name for p in other.iterdir()] == ["notes.txt"]
+    # a sweep whose record has a run of this name with other parameters
+    spec = SweepSpec(gamma=271, icosphere=3)
+    (point,) = spec.points()
+    held = {k: v for k, v in point.items() if k != "name"} | {"seed": 7}
+    write_sweep_file(tmp_path / "s", spec.to_dict(), {point["name"]: held})
+    before = (tmp_path / "s" / SWEEP_JSON).read_text()
+    assert cli_main([*argv, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--out {tmp_path / 's'}: already has a run" in err and "seed" in err
+    assert len(err.splitlines()) == 1 and not started
+    assert (tmp_path / "s" / SWEEP_JSON).read_text() == before
+
+
+def test_cli_a_value_error_of_the_work_is_a_failure_not_bad_input(tmp_path, capsys,
+                                                                  monkeypatch):
+    from shellbuckle import sweep as sweep_module
+
+    def fails(*args, **kwargs):
+        raise ValueError("a singular matrix in a worker")
+
+    monkeypatch.setattr(sweep_module, "run_sweep", fails)
+    assert cli_main(["sweep", "--gamma", "271", "--icosphere", "3", "--quiet",
+                     "--out", str(tmp_path / "s")]) == 1
+    assert "a singular matrix in a worker" in capsys.readouterr().err
+
+
 # --------------------------------------------------------------------------- one run, no Dask
 
 def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):

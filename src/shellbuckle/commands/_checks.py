@@ -12,7 +12,8 @@ and what is allowed (docs/errors.md).
 - The rules that involve several options: :func:`check_mesh` (the mesh must resolve the
   elastic length), :func:`check_smooth_degree` (and the smooth imperfection), :func:`check_c0`, :func:`check_pressures`, :func:`check_steps`,
   :func:`check_parallel`; and the paths: :func:`input_file`, :func:`run_folder`,
-  :func:`output_file`, :func:`output_folder`.
+  :func:`output_file`, :func:`output_folder`, :func:`sweep_folder`; and
+  :func:`scheduler_address`.
 - :func:`the_work`: around a command's work, once its input is checked: a ``ValueError``
   raised there is a failure (:class:`WorkFailed`, exit code 1), not bad input.
 """
@@ -525,6 +526,36 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
         return path
     _parent(option, path)
     return path
+
+
+def sweep_folder(option: str, path, spec, *, what: str = "a sweep") -> Path:
+    """The folder of the sweep ``spec`` (a :class:`~shellbuckle.sweep.SweepSpec`): new, empty,
+    or a sweep to resume or extend; never a run folder, a non-empty folder that is no sweep, or
+    a sweep whose record has a run of ``spec``'s names with other parameters. ``what`` names the
+    sweep in the refusal of a run folder. Checked before any work, writing nothing."""
+    from ..store.run import RUN_JSON
+    from ..sweep import check_sweep
+
+    folder = output_folder(option, path)
+    if (folder / RUN_JSON).exists():
+        raise ValueError(f"{option} {path}: is a run folder; {what} needs its own folder")
+    try:
+        check_sweep(spec, folder)
+    except ValueError as exc:  # the sweep's own refusal, which begins with the folder
+        reason = str(exc).removeprefix(f"{folder} ")
+        raise ValueError(f"{option} {path}: {reason}") from None
+    return folder
+
+
+def scheduler_address(option: str, text) -> None:
+    """A Dask scheduler's address that can be one (``[protocol://]host:port``), or None."""
+    from ..sweep import check_scheduler
+
+    try:
+        check_scheduler(text)
+    except ValueError as exc:
+        raise ValueError(f"{option} {text}: {str(exc).removeprefix('scheduler address ')}") \
+            from None
 
 
 def run_folder(option: str, path):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ._checks import (add_command, add_number, allowed, as_option, check_mesh,
-                      check_smooth_degree, check_value, output_folder, the_work, typed)
+                      check_smooth_degree, check_value, sweep_folder, the_work, typed)
 from ._options import shape_degrees, values
 
 
@@ -127,14 +127,7 @@ def _cmd(args) -> int:
             table = refinement.report(args.out, paths)
     else:
         options = _options(_with_defaults(args))
-        _out(args.out)
-        from ..sweep import check_sweep
-
-        try:  # a folder of other runs: bad input, refused before any work
-            check_sweep(refinement.study_spec(**options), args.out)
-        except ValueError as exc:
-            reason = str(exc).removeprefix(f"{Path(args.out)} ")
-            raise ValueError(f"--out {args.out}: {reason}") from None
+        sweep_folder("--out", args.out, refinement.study_spec(**options), what="the study")
         with the_work():
             table = refinement.run_study(args.out, workers=args.workers,
                                          progress=not args.quiet, carry_states=args.carry,
@@ -252,17 +245,6 @@ def _check_shells(args, options: dict, n: int) -> None:
             shown = f"critical, {L} at {where}"
         check_smooth_degree(option, text, L, n, mesh=f"--vertices {n}", kind="shape",
                             degree_text=shown)
-
-
-def _out(out) -> None:
-    """A study folder: new, empty, or a sweep (run_sweep says so); never a run folder."""
-    from pathlib import Path
-
-    from ..store.run import RUN_JSON
-
-    path = output_folder("--out", out)
-    if (Path(path) / RUN_JSON).exists():
-        raise ValueError(f"--out {out}: is a run folder; the study needs its own folder")
 
 
 def _study_folder(out) -> None:

@@ -9,7 +9,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._checks import add_command, add_number, allowed, check_mesh, output_folder
+from ._checks import (add_command, add_number, allowed, check_mesh, output_folder,
+                      scheduler_address, the_work)
 from ._options import add_convention_option, add_protocol_options, values
 
 
@@ -86,6 +87,7 @@ def _cmd(args) -> int:
                          f"{study.dv:g}")
     _check_meshes(study, args)
     _check_out(args.out, args.compare_conventions)
+    scheduler_address("--scheduler", args.scheduler)
     if args.workers is not None and args.scheduler is not None:
         raise ValueError("--workers applies to the local cluster; a --scheduler has its own "
                          "workers")
@@ -101,14 +103,17 @@ def _cmd(args) -> int:
                              f"--energy-convention (got {args.energy_convention!r})")
         from ..studies.quilliet2008.conventions import COMPARISON_MD, compare_conventions
 
-        data = compare_conventions(args.out, study, workers=args.workers,
-                                   scheduler=args.scheduler, progress=not args.quiet,
-                                   formats=formats, sensitivity_seeds=args.sensitivity)
+        with the_work():
+            data = compare_conventions(args.out, study, workers=args.workers,
+                                       scheduler=args.scheduler, progress=not args.quiet,
+                                       formats=formats, sensitivity_seeds=args.sensitivity)
         print((Path(args.out) / COMPARISON_MD).read_text(encoding="utf-8"))
         print(f"wall time: {data['wall_s']:.0f} s")
         return 0
-    summary = reproduce_paper(args.out, study, workers=args.workers, scheduler=args.scheduler,
-                              progress=not args.quiet, formats=formats)
+    with the_work():
+        summary = reproduce_paper(args.out, study, workers=args.workers,
+                                  scheduler=args.scheduler, progress=not args.quiet,
+                                  formats=formats)
     _print(summary, args.out)
     return 1 if summary["failed"] else 0
 

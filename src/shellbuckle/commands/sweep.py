@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 
 from ._checks import (RANGES, add_command, allowed, as_option, check_mesh,
-                      check_smooth_degree, check_value, input_file, output_folder)
+                      check_smooth_degree, check_value, input_file, scheduler_address,
+                      sweep_folder, the_work)
 from ._options import (add_protocol_options, add_shell_options, default_gamma, shape_degrees,
                        values)
 
@@ -91,7 +92,7 @@ def register(sub) -> None:
 def _cmd(args) -> int:
     from pathlib import Path
 
-    from ..sweep import SweepSpec, check_scheduler, run_sweep
+    from ..sweep import SweepSpec, run_sweep
 
     given = {name: values(_flag(name), getattr(args, name), kind, SPANS.get(name, ""))
              for name, kind in KINDS.items()
@@ -101,11 +102,10 @@ def _cmd(args) -> int:
     if args.no_c0_cycle:
         given["c0_cycle"] = False
     workers = _workers(args)
-    check_scheduler(args.scheduler)
+    scheduler_address("--scheduler", args.scheduler)
     defaults = {"gamma": [default_gamma()]}  # the one default gamma of the command line
     if args.config:
         input_file("--config", args.config)
-    _out(args.out)
     if args.shape_imperfection is not None and args.shape_imperfection_d is not None:
         raise ValueError(f"--shape-imperfection-d {args.shape_imperfection_d}: give either "
                          "--shape-imperfection (units of R) or --shape-imperfection-d (units of "
@@ -117,9 +117,11 @@ def _cmd(args) -> int:
         raise ValueError(as_option(str(exc), {name: (_flag(name), getattr(args, name))
                                               for name in given if name in KINDS})) from None
     _check(spec, given, args.config, args.gamma)
-    catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
-                          progress=not args.quiet, analyze=not args.no_analysis,
-                          retry_failed=not args.no_retry)
+    sweep_folder("--out", args.out, spec)
+    with the_work():
+        catalogue = run_sweep(spec, args.out, scheduler=args.scheduler, workers=workers,
+                              progress=not args.quiet, analyze=not args.no_analysis,
+                              retry_failed=not args.no_retry)
     counts = catalogue["status"].value_counts()
     print(f"sweep {args.out}: {len(catalogue)} runs; "
           + ", ".join(f"{status} {n}" for status, n in counts.items()))
@@ -146,17 +148,6 @@ def _workers(args) -> int | None:
 
 def _flag(name: str) -> str:
     return f"--{name.replace('_', '-')}"
-
-
-def _out(out) -> None:
-    """A sweep folder: new, empty, or a sweep (run_sweep says so); never a run folder."""
-    from pathlib import Path
-
-    from ..store.run import RUN_JSON
-
-    path = output_folder("--out", out)
-    if (Path(path) / RUN_JSON).exists():
-        raise ValueError(f"--out {out}: is a run folder; a sweep needs its own folder")
 
 
 def _check(spec, given: dict, config, gamma_text=None) -> None:
