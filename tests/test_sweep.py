@@ -451,3 +451,32 @@ def test_a_local_cluster_serves_on_a_free_local_port_without_a_warning(recwarn):
     finally:
         taken.close()
     assert not [w for w in recwarn if "already in use" in str(w.message)]
+
+
+@pytest.mark.parametrize("damage, said", [
+    ("folder", "is a folder"), ("not json", "not valid JSON"), ("latin-1", "not valid JSON"),
+    ("a list", "not a shellbuckle-sweep description"), ("no runs", "is damaged"),
+    ("runs a list", "is damaged"),
+])
+def test_a_damaged_sweep_record_is_refused_in_one_line(tmp_path, capsys, damage, said):
+    out = tmp_path / "s"
+    out.mkdir()
+    record = out / SWEEP_JSON
+    header = '{"format": "shellbuckle-sweep", "format_version": 1'
+    if damage == "folder":
+        record.mkdir()
+    else:
+        record.write_bytes({"not json": b'{"format": 3', "latin-1": b'{"f\xe9": 1}',
+                            "a list": b"[1]", "no runs": (header + "}").encode(),
+                            "runs a list": (header + ', "runs": [], "specs": []}').encode(),
+                            }[damage])
+    listing = sorted(p.name for p in out.iterdir())
+    for argv in (["sweep", "--gamma", "271", "--icosphere", "3", "--quiet", "--out", str(out)],
+                 ["refine", "--report-only", "--out", str(out)]):
+        assert cli_main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert f"--out {out}:" in err and said in err and len(err.splitlines()) == 1
+    assert cli_main(["report", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert said in err and len(err.splitlines()) == 1
+    assert sorted(p.name for p in out.iterdir()) == listing

@@ -248,11 +248,16 @@ def _check_shells(args, options: dict, n: int) -> None:
 
 
 def _study_folder(out) -> None:
+    """A folder `shellbuckle refine --out DIR` made: its sweep record readable."""
     from pathlib import Path
 
-    from ..store.catalogue import SWEEP_JSON
+    from ..store.catalogue import SWEEP_JSON, read_sweep_file
 
     if not (Path(out) / SWEEP_JSON).exists():
         raise ValueError(f"--out {out}: holds no study (no {SWEEP_JSON}); --report-only "
                          "rebuilds the report of a folder `shellbuckle refine --out DIR` "
                          "made")
+    try:
+        read_sweep_file(out)
+    except ValueError as exc:
+        raise ValueError(f"--out {out}: {exc}") from None

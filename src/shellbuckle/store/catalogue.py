@@ -105,8 +105,12 @@ def _read_json(path: Path):
         return json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         return None
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path} is not valid JSON ({exc})") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path} is a folder; expected a JSON file") from None
+    except PermissionError:
+        raise ValueError(f"{path} cannot be read (permission denied)") from None
 
 
 # --------------------------------------------------------------------------- sweep.json
@@ -118,7 +122,13 @@ def read_sweep_file(out_dir) -> dict:
     if data is None:
         raise ValueError(f"{out_dir} is not a shellbuckle sweep folder (it has no {SWEEP_JSON}; "
                          "made by `shellbuckle sweep --out DIR`)")
-    return check_format(data, out_dir / SWEEP_JSON, FORMAT_NAME, FORMAT_VERSION)
+    data = check_format(data, out_dir / SWEEP_JSON, FORMAT_NAME, FORMAT_VERSION)
+    runs, specs = data.get("runs"), data.get("specs")
+    if not isinstance(runs, dict) or not all(isinstance(p, dict) for p in runs.values()) \
+            or not isinstance(specs, list):
+        raise ValueError(f"{out_dir / SWEEP_JSON} is damaged: it needs 'runs' (each run's "
+                         "parameters by name) and 'specs' (a list)")
+    return data
 
 
 def check_sweep_folder(out_dir, runs: dict[str, dict]) -> dict | None:
