@@ -13,6 +13,7 @@ import scipy.linalg as la
 from shellbuckle import theory
 from shellbuckle.analysis.collect import collect_runs, threshold_points
 from shellbuckle.analysis.events import events, thresholds
+from shellbuckle.analysis.classify import classify
 from shellbuckle.cli import main
 from shellbuckle import locate as locate_mod
 from shellbuckle.locate import _eigenvalue_zero, _old_branch, located, locate
@@ -111,14 +112,29 @@ def test_the_located_point_lies_on_the_sphere_branch_just_before_its_end(runs):
     assert shape_without_jiggle(0.197) != "sphere"
     assert p["hi"] < 0.194 < 0.197 < p["lo"] + step
     assert p["old"]["lowest_eigenvalue"] > 0
-    # the location's own walk along the branch found its end there, and the steps without
-    # jiggle from the stored start (another path) agree with the bracket it stored
+    # the location's own walk along the branch found its end there, within a step of where
+    # the steps without jiggle from the stored start (another path) find it
     branch = p["old_branch"]
     assert p["mechanism"] == "instability"
     assert 0.194 - 0.0015 <= branch["end_lo"] < branch["end_hi"] <= 0.197 + 0.0015
     assert branch["end_hi"] - branch["end_lo"] <= 0.01 * branch["end_hi"]
-    assert shape_without_jiggle(branch["end_lo"]) == "sphere"
-    assert shape_without_jiggle(branch["end_hi"]) != "sphere"
+    walk = branch["evaluations"]
+    assert all(e["ends"] for e in walk if not e["converged"])  # no minimum: no branch
+    # the walk made again from the bracket's old end: the same states to the last bit, its
+    # last state at end_lo a converged sphere and a proper minimum (the branch holds there),
+    # and end_hi a step that ended it
+    state, record = step_to(p["lo"])
+    X = state.X
+    for e in walk:
+        state, rec = step_to(e["dV_over_V"], jiggle=False, start=(X, record))
+        assert rec["E_total"] == e["E_total"] and rec["converged"] == e["converged"]
+        if not e["ends"]:
+            X, record = state.X, rec
+    assert record["dV_over_V"] == pytest.approx(branch["end_lo"], abs=1e-12)
+    assert record["converged"] and classify(X, run.faces).shape == "sphere"
+    ctx = step_to.ctx
+    assert lowest_eigenvalues(ctx.energy, ctx.volume, X, ctx.pinned, k=1)[0] > 0
+    assert [e["ends"] for e in walk if e["dV_over_V"] == branch["end_hi"]] == [True]
     middle = 0.5 * (branch["end_lo"] + branch["end_hi"])
     assert branch["anticipation"] == pytest.approx(1 - p["dV_over_V"] / middle)
     assert 0.005 < branch["anticipation"] < 0.03
@@ -144,7 +160,6 @@ def test_the_bisection_is_the_step_from_the_stored_step(runs):
     """Every evaluation starts from the stored step before the event: the located bracket is
     that of an independent bisection of the protocol's step from that stored step (the oracle),
     and the last old state equals that step made to the bracket's lower end."""
-    from shellbuckle.analysis.classify import classify
 
     _, run = runs
     p = located(run)["primary_buckling"]
@@ -241,6 +256,15 @@ def test_location_is_kept_reproducible_and_recovers_from_damage(runs, caplog):
     redone = locate(run, tol=TOL, threads=1)["primary_buckling"]
     assert redone["lo"] == first["primary_buckling"]["lo"]
     assert json.loads((run.path / LOCATED_JSON).read_text())["version"] == 2
+    # a point whose old branch was followed through a step that did not converge (as the walk
+    # did before such a step ended it) is located again
+    stored = json.loads((run.path / LOCATED_JSON).read_text())
+    walk = stored["events"]["primary_buckling"]["old_branch"]["evaluations"]
+    next(e for e in walk if not e["ends"])["converged"] = False
+    (run.path / LOCATED_JSON).write_text(json.dumps(stored))
+    again = locate(run, tol=TOL, threads=1)["primary_buckling"]
+    assert again["wall_s"] != redone["wall_s"] and again["lo"] == redone["lo"]
+    assert all(e["ends"] or e["converged"] for e in again["old_branch"]["evaluations"])
 
 
 def test_locate_command(runs, capsys):
@@ -284,8 +308,9 @@ class _Branch:
 
     ctx = type("Ctx", (), {"V0": 1.0})()
 
-    def __init__(self, end, leaves_domain=None, turns=None):
+    def __init__(self, end, leaves_domain=None, turns=None, stalls=None):
         self.end, self.leaves, self.turns, self.calls = end, leaves_domain, turns, []
+        self.stalls = stalls  # an interval where a minimization does not converge
 
     def ended(self, v):
         return self.end is not None and v >= self.end
@@ -302,7 +327,8 @@ class _Branch:
         state = protocol_mod.state_after(3, np.array([v]), {})
         if self.ended(v):
             return state, {"E_total": 2.0 * v - 0.5, "pressure": 1.0, "converged": True}
-        return state, {"E_total": 2.0 * v, "pressure": 2.0, "converged": True}
+        converged = self.stalls is None or not self.stalls[0] <= v < self.stalls[1]
+        return state, {"E_total": 2.0 * v, "pressure": 2.0, "converged": converged}
 
 
 def _follow(monkeypatch, branch, lo=0.0076, hi=0.0077, step=0.019, tol=1e-4):
@@ -376,6 +402,61 @@ def test_old_branch_that_leaves_the_domain(monkeypatch):
     found = _follow(monkeypatch, _Branch(0.0149, leaves_domain=(0.0120, 0.0130)))
     assert found["end_lo"] < 0.0149 <= found["end_hi"] and "only" in found["failure"]
     assert found["mechanism"] == "barrier crossing"
+
+
+def test_old_branch_ends_where_no_minimum_is_found(monkeypatch):
+    """From 0.0120 on the minimizations stall (a sphere, not converged: near a fold the
+    lowest eigenvalue vanishes): the certified branch ends there, 0.0149's jump is not reached,
+    and the walk's last state is a converged one."""
+    branch = _Branch(0.0149, stalls=(0.0120, 0.0149))
+    found = _follow(monkeypatch, branch)
+    assert found["end_lo"] < 0.0120 <= found["end_hi"] and "failure" not in found
+    assert found["end_hi"] - found["end_lo"] <= 0.01 * found["end_hi"]
+    walk = found["evaluations"]
+    assert all(e["ends"] for e in walk if not e["converged"])
+    assert any(not e["converged"] and e["shape"] == "sphere" for e in walk)
+    reached = [e for e in walk if e["dV_over_V"] == found["end_lo"]]
+    assert len(reached) == 1 and reached[0]["converged"] and not reached[0]["ends"]
+    # each step starts from the last converged state
+    last = 0.0076
+    for v, _, start in branch.calls:
+        assert start == last
+        if not branch.ended(v) and not branch.stalls[0] <= v < branch.stalls[1]:
+            last = max(last, v)
+
+
+def test_an_unconverged_evaluation_stops_the_bisection(runs, tmp_path, monkeypatch):
+    """The third evaluation of the bisection does not converge: the bisection stops there,
+    keeps the bracket made of converged ends, and says so."""
+    import shutil
+
+    from shellbuckle.locate import StepFromStored, locate
+
+    plain, found = runs
+    copy = Path(shutil.copytree(plain.path, tmp_path / "plain"))
+    real, calls = StepFromStored.__call__, []
+
+    def third_stalls(self, v, *, jiggle=True, start=None):
+        state, record = real(self, v, jiggle=jiggle, start=start)
+        if jiggle:
+            calls.append(v)
+            if len(calls) == 3:
+                record = dict(record, converged=False)
+        return state, record
+
+    monkeypatch.setattr(StepFromStored, "__call__", third_stalls)
+    point = locate(copy, tol=TOL, threads=1)["primary_buckling"]
+    full = located(found)["primary_buckling"]
+    assert not point["complete"] and "did not converge" in point["failure"]
+    assert len(point["evaluations"]) == 3 and not point["evaluations"][-1]["converged"]
+    assert all(e["converged"] for e in point["evaluations"][:2])
+    # the bracket of the first two evaluations, which holds the full location's bracket
+    assert point["lo"] <= full["lo"] < full["hi"] <= point["hi"]
+    table = plain.table.set_index("step")
+    k = point["step"]
+    width = table.loc[k, "dV_over_V"] - table.loc[k - 1, "dV_over_V"]
+    assert point["hi"] - point["lo"] == pytest.approx(width / 4, rel=1e-9)
+    assert calls[2] not in (point["lo"], point["hi"])
 
 
 def test_jump_compares_the_energy_difference_with_the_pressure_work():

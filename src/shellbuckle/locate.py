@@ -33,7 +33,10 @@ event is *continuous*: the shape crosses the classifier's line (a rim turning co
 its apices, say) without a jump. Otherwise the old branch is followed from its last state
 without any jiggle (no help over a barrier), to half a step and to one original step past the
 located point (further if that is short of 10 % beyond it); it ends where the event shows with
-a jump (:func:`_jump`), and its end is then bisected to 1 % (:func:`_old_branch`). If
+a jump (:func:`_jump`) or where a step finds no minimum (its minimization does not converge:
+near a fold the branch's lowest eigenvalue vanishes and the minimizer stalls there), so that
+its last state is a certified minimum of the old branch, and its end is then bisected to 1 %
+(:func:`_old_branch`). If
 the branch ends less than 10 % of that volume after the located point, the event is an
 *instability*: a fold or bifurcation of the branch (Thompson & Hunt, *A General Theory of
 Elastic Stability*, 1973) that the jiggle only anticipates. If it ends later or goes on past
@@ -43,6 +46,10 @@ the paper's runs, between the energy crossing of the two branches and the classi
 threshold. The lowest eigenvalue's linear extrapolation to zero
 (``eigenvalue_zero_at``) is kept as an estimate; it is no test: near a fold the eigenvalue
 falls like the square root of the distance to it, and the line reaches zero late.
+
+Every end of a bracket is a converged minimization: an evaluation of the bisection whose
+minimization does not converge stops it, with the bracket had so far (``complete`` false and a
+``failure`` that says so), as does one that leaves the physical domain.
 
 The location is a refinement of the run: the table and the stored steps are not changed, and a
 run located or not has the same steps. It assumes the event is monotone in volume within one
@@ -147,7 +154,8 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
         # (a point located before the old branch was followed, without "old_branch", is
         # located again: its mechanism came from an extrapolation of the lowest eigenvalue)
         if (point and point.get("step") == event.step and point.get("tol", 1.0) <= tol * 1.000001
-                and point.get("analysis_version") == ANALYSIS_VERSION and "old_branch" in point):
+                and point.get("analysis_version") == ANALYSIS_VERSION and "old_branch" in point
+                and _ends_converged(point)):
             out[name] = point
         else:
             todo.append(event)
@@ -206,6 +214,18 @@ class StepFromStored:
         return classify(self(dV_over_V, **kwargs)[0].X, self.run.faces).shape
 
 
+def _ends_converged(point: dict) -> bool:
+    """Whether a stored point's brackets are made of converged minimizations (a location made
+    before unconverged evaluations ended a bisection or the old branch may hold one; it is
+    located again)."""
+    bisection = point.get("evaluations") or []
+    if any(not e.get("converged", True) for e in bisection[:-1]) or (
+            bisection and not bisection[-1].get("converged", True) and point.get("complete")):
+        return False
+    walk = (point.get("old_branch") or {}).get("evaluations") or []
+    return all(e.get("ends") or e.get("converged", True) for e in walk)
+
+
 def located(run_or_path) -> dict[str, dict]:
     """The located points stored with a run, ``{name: point}`` (empty if none)."""
     return read_located(Run.of(run_or_path).path)
@@ -262,6 +282,12 @@ def _locate_event(ctx, run: Run, event, tol: float) -> dict:
         evaluations.append({"dV_over_V": mid, "shape": shape, "shows_event": shows,
                             "E_total": record["E_total"], "pressure": record["pressure"],
                             "converged": record["converged"]})
+        if not record["converged"]:  # no minimum: neither end of a bracket
+            failure = (f"the step to dV/V = {mid:.6f} did not converge (|r| = "
+                       f"{record['grad_norm']:.3g})")
+            log.warning("%s: %s; %s located to [%.6f, %.6f] only", run.path, failure,
+                        event.name, lo, hi)
+            break
         log.info("%s %s: dV/V = %.6f gives %s (%s)", run.path.name, event.name, mid, shape,
                  "the event" if shows else "the old branch")
         if shows:
@@ -315,9 +341,10 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
     ``reach``, one original ``step`` past the located point or, if that is farther, just past
     where a branch ending ``ANTICIPATION`` of its volume after it would end; each step from the
     state before. The branch ends where a step shows the event with a jump from the state before
-    (:func:`_jump`); one that shows it continuously (the old branch crossing the classifier's
-    line) goes on. Where it ends, its end is bisected (from the last old state, without jiggle)
-    to ``max(tol, BRANCH_END_RTOL * end)``.
+    (:func:`_jump`), or where its minimization does not converge (no minimum found there: the
+    last state of the walk is always a converged one); one that shows the event continuously
+    (the old branch crossing the classifier's line) goes on. Where it ends, its end is bisected
+    (from the last old state, without jiggle) to ``max(tol, BRANCH_END_RTOL * end)``.
 
     Returns ``mechanism``: ``instability`` when the branch ends less than ``ANTICIPATION`` of
     its end's volume after the located point (the jiggle only anticipates a fold or
@@ -348,7 +375,7 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
             return None, None, False, f"{why}: {exc.reason}"
         shape = classify(state.X, run.faces).shape
         shows = wanted(shape)
-        ended = shows and _jump(record, rec, V0 * (v - last))
+        ended = not rec["converged"] or (shows and _jump(record, rec, V0 * (v - last)))
         walk.append({"dV_over_V": v, "shape": shape, "shows_event": shows, "ends": ended,
                      "E_total": rec["E_total"], "pressure": rec["pressure"],
                      "converged": rec["converged"]})
