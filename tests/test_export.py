@@ -230,3 +230,28 @@ def test_a_surface_evolver_file_with_an_energy_we_do_not_model_is_refused(tmp_pa
     err = capsys.readouterr().err
     assert "gravity_like" in err and "sq_mean_curvature" in err and "Traceback" not in err
     assert not (tmp_path / "r").exists()
+
+
+def test_an_export_never_overwrites_a_file_of_the_run(tmp_path):
+    """The Python API too: an XDMF series named mesh.xdmf would write the run's mesh.h5 beside
+    it; a step file inside steps/ would sit among the run's steps."""
+    import hashlib
+
+    from shellbuckle.export import export_series, export_step
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+
+    run = deflate(icosphere(2), ShellParameters.from_gamma(271.0), dv=0.05, until=0.05,
+                  seed=1, out=tmp_path / "run")
+    digest = {p: hashlib.sha256(p.read_bytes()).hexdigest()
+              for p in run.path.rglob("*") if p.is_file()}
+    with pytest.raises(ValueError, match="mesh.h5"):
+        export_series(run, run.path / "mesh.xdmf")
+    with pytest.raises(ValueError, match="steps"):
+        export_step(run, -1, run.path / "steps" / "s.vtu")
+    after = {p: hashlib.sha256(p.read_bytes()).hexdigest()
+             for p in run.path.rglob("*") if p.is_file()}
+    assert after == digest
+    # beside the run's files, any other name is fine
+    assert export_step(run, -1, run.path / "shape.vtu").is_file()

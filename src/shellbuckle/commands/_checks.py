@@ -499,25 +499,50 @@ def _parent(option: str, path: Path) -> None:
         raise ValueError(f"{option} {path}: the folder {parent} is not writable")
 
 
-def output_file(option: str, path, suffixes=()) -> Path:
+def output_file(option: str, path, suffixes=(), *, beside=()) -> Path:
     """A file to write: not a folder, in an existing writable folder, with one of
-    ``suffixes`` when given."""
+    ``suffixes`` when given, and never a file of a run or sweep folder (run.json, mesh.h5,
+    a step, the catalogue: :func:`~shellbuckle.store.names.store_file`). ``beside``: the
+    suffixes of files the writer also makes next to it (an XDMF file's ``.h5``), checked as
+    well."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a folder; expected a file name")
     if suffixes and path.suffix.lower() not in suffixes:
         raise ValueError(f"{option} {path}: allowed suffixes {', '.join(suffixes)}")
+    _not_a_store_file(option, path, [path.with_suffix(s) for s in beside])
     _parent(option, path)
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{option} {path}: the file exists and is not writable")
     return path
 
 
+def _not_a_store_file(option: str, path: Path, also=()) -> None:
+    """Refuse ``path`` (or a file written beside it, ``also``) if it is a file of a run or
+    sweep folder, which only the store writes."""
+    from ..store.names import store_file
+
+    for target in (path, *also):
+        found = store_file(target)
+        if found is None:
+            continue
+        folder, entry, kind = found
+        beside = "" if target == path else f" (it writes {target.name} beside it)"
+        if target.name == entry:
+            what = f"{entry} belongs to the {kind} in {folder}"
+        else:
+            what = f"{target.name} would be inside {entry}/ of the {kind} in {folder}"
+        raise ValueError(f"{option} {path}: {what}{beside}, which only the {kind}'s store "
+                         "writes; write elsewhere")
+
+
 def output_folder(option: str, path, *, run: bool = False) -> Path:
     """A folder to write in: an existing writable folder, or a new one in an existing writable
-    folder. ``run``: a run folder, which may be a previous run there (it is resumed or
-    refused by the run's own rules)."""
+    folder, never a folder of a run or sweep folder's store (its ``steps/``, ``logs/``).
+    ``run``: a run folder, which may be a previous run there (it is resumed or refused by the
+    run's own rules)."""
     path = Path(path)
+    _not_a_store_file(option, path)
     if path.exists():
         if not path.is_dir():
             raise ValueError(f"{option} {path}: is an existing file; expected a folder")

@@ -73,7 +73,7 @@ def _series(args, fmt: str) -> int:
     if not run.steps:
         raise ValueError(f"DIR {args.dir}: holds a run with no finished step yet")
     out = args.out if args.out else default_series_path(run, fmt)
-    output_file("--out", out, suffixes=(SERIES_FORMATS[fmt],))
+    output_file("--out", out, suffixes=(SERIES_FORMATS[fmt],), beside=(".h5",))
     with the_work():
         path = export_series(run, out, fmt=fmt)
     print(f"{len(run.steps)} steps of {run.path} written to {path} and "

@@ -46,7 +46,7 @@ def _cmd(args) -> int:
             raise ValueError(f"DIR {folder}: is a file; expected a run or sweep folder")
     if args.reference is not None:
         input_file("--reference", args.reference)
-    output_file("--out", out)
+    output_file("--out", out, suffixes=(".md",) if fmt == "md" else (".html", ".htm"))
     path = write_report(args.dirs, out, fmt, reference=args.reference,
                         figures=not args.no_figures)
     print(path)

@@ -73,7 +73,7 @@ log = logging.getLogger(__name__)
 
 FORMAT_NAME = "shellbuckle-sweep"
 FORMAT_VERSION = 1
-SWEEP_JSON, CATALOGUE_CSV, LOGS_DIR = "sweep.json", "catalogue.csv", "logs"
+from .names import CATALOGUE_CSV, LOGS_DIR, SWEEP_JSON  # noqa: E402, F401
 
 #: Relative pressure drop between consecutive steps taken as the primary snap-through when the
 #: analysis is not available (the same criterion confirms primary buckling in the analysis).

@@ -25,12 +25,11 @@ TABLE_COLUMNS = ("step", "target_dV_over_V", "dV_over_V", "E_total", "E_bend", "
 ANALYSIS_COLUMNS = ("shape", "n_dimples", "corners", "W")
 STATUSES = ("running", "paused", "finished", "failed", "interrupted")
 
-RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
+from .names import (ANALYSIS_JSON, ANALYSIS_LOCK, MESH_H5, RUN_JSON, STEPS_DIR,  # noqa: F401
+                    TABLE_CSV, WRITER_LOCK)
 #: Key of PARDISO's mode in a run's ``meta["extra"]``: ``"plain"`` or ``"reproducible"``
 #: (:mod:`shellbuckle.solve.linear`); a run stored without it was made in the reproducible mode.
 SOLVER_MODE = "pardiso_mode"
-TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
-WRITER_LOCK, ANALYSIS_LOCK = ".lock", ".analysis.lock"
 _WRITER_FILES = {RUN_JSON, MESH_H5, TABLE_CSV}
 _INTEGER_COLUMNS = {"step", "iterations", "inertia", "n_dimples", "corners", "W"}
 #: Attribute of a step file holding the checksums of its content (JSON), and of mesh.h5

@@ -27,10 +27,10 @@ from pathlib import Path
 
 from ..util import json_safe
 from .atomic import atomic_write_bytes, locked_update
+from .names import LOCATED_JSON, LOCATED_LOCK  # noqa: F401
 
 log = logging.getLogger(__name__)
 
-LOCATED_JSON, LOCATED_LOCK = "located.json", ".located.lock"
 LOCATED_VERSION = 2
 #: Default tolerance of a located event, in dV/V (the final bracket's width).
 LOCATE_TOL = 1e-4
