@@ -333,3 +333,59 @@ def test_a_sweep_catalogue_row_names_the_damaged_steps(tmp_path, folder):
     assert row["message"].startswith("end of the schedule")  # the stop reason still reads
     assert f"damaged step(s) left out: step {MIDDLE}: steps/step_{MIDDLE:06d}.h5" in \
         row["message"]
+
+
+# ------------------------------------------------------------ a description that is not the run's
+
+def _other_mesh_description(folder, tmp_path):
+    other = deflate(icosphere(3), PARAMS, out=tmp_path / "other", **OPTIONS)
+    shutil.copyfile(other.path / "run.json", folder / "run.json")
+
+
+def _changed_reference(folder, tmp_path):
+    with h5py.File(folder / "mesh.h5", "r+") as f:
+        f["X0"][0, 0] *= 1.01
+
+
+def _set_protocol(value):
+    def damage(folder, tmp_path):
+        meta = json.loads((folder / "run.json").read_text())
+        meta["protocol"] = value(meta["protocol"])
+        (folder / "run.json").write_text(json.dumps(meta))
+    return damage
+
+
+@pytest.mark.parametrize("damage, said", [
+    (lambda folder, tmp_path: _truncate(folder / "mesh.h5"), "cannot be read as HDF5"),
+    (lambda folder, tmp_path: (folder / "mesh.h5").unlink(), "mesh.h5 is missing"),
+    (_other_mesh_description, "does not match the mesh run.json describes"),
+    (_changed_reference, "does not match the mesh run.json describes"),
+    (_set_protocol(lambda p: p | {"schedule": "x"}), "protocol cannot be read"),
+    (_set_protocol(lambda p: {}), "protocol cannot be read"),
+], ids=["mesh truncated", "mesh missing", "another mesh's run.json", "reference changed",
+        "schedule not numbers", "no protocol"])
+def test_resume_refuses_a_run_it_cannot_read_before_writing_anything(folder, tmp_path, damage,
+                                                                      said):
+    """The description and the mesh are checked before the store records a session: a
+    refusal leaves run.json, the status and every step file as they were (no step is set
+    aside for a mesh that is not the run's)."""
+    damage(folder, tmp_path)
+    before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    code, _, err = _cli(["resume", str(folder), "--quiet", "--no-plot", "--no-locate"])
+    assert code == 2 and "Traceback" not in err and said in err, err
+    assert len(err.strip().splitlines()) == 1
+    after = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    assert after == before
+
+
+def test_a_changed_reference_mesh_is_refused_by_every_reader(folder, tmp_path):
+    """A reference shape changed in place is another shell: no new run starts from it, and
+    its steps are not exported on it."""
+    _changed_reference(folder, tmp_path)
+    for argv in (["continue", str(folder), "--until", "0.3", "--out", str(tmp_path / "c"),
+                  "--quiet", "--no-plot"],
+                 ["export", str(folder), "--step", "-1", "--format", "vtk", "--out",
+                  str(tmp_path / "x.vtk")]):
+        code, _, err = _cli(argv)
+        assert code in (1, 2) and "does not match the mesh run.json describes" in err, err
+        assert not (tmp_path / "c").exists() and not (tmp_path / "x.vtk").exists()

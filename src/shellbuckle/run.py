@@ -31,7 +31,7 @@ from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .protocol.spec import DEFAULT_MAX_ITER
 from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
-from .store.layout import SOLVER_MODE
+from .store.layout import RUN_JSON, SOLVER_MODE
 from .store.located import LOCATE_TOL
 from .store.run import RunStore
 from .store.view import Run
@@ -149,10 +149,19 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
     if threads is not None:
         threads = check_threads(threads)
     def setup():
+        # the description and the mesh checked before the store records a session
+        described = RunStore.open(path)
+        try:
+            params = ShellParameters.from_dict(described.params)
+            protocol = Protocol.from_dict(described.protocol)
+        except (ValueError, TypeError, KeyError, AttributeError) as exc:
+            raise ValueError(
+                f"{Path(path) / RUN_JSON}: its parameters or protocol cannot be read "
+                f"({type(exc).__name__}: {exc}); restore it from a backup, or move it away "
+                f"(`mv run.json run.json.bad`) to rebuild it from the copy in mesh.h5") from None
+        mesh = Mesh.from_arrays(described.X0, described.faces)
         store = RunStore.resume(path)
-        params = ShellParameters.from_dict(store.params)
-        protocol = Protocol.from_dict(store.protocol)
-        return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
+        return store, mesh, params, protocol
 
     return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
                   locate=locate_tol if locate else None)

@@ -129,6 +129,8 @@ def _read_h5(path: Path, read):
     except OSError as exc:
         raise ValueError(f"{path} cannot be read as HDF5 ({exc}); the run folder is "
                          "damaged") from None
+    except KeyError as exc:
+        raise ValueError(f"{path} lacks the dataset {exc}; the run folder is damaged") from None
 
 
 def _read_mesh_arrays(f) -> tuple:

@@ -274,6 +274,7 @@ class RunStore:
                              f"{'damaged' if 0 in store.damaged else 'not stored'}; it is "
                              f"the step it starts from, step {store.parent['step']} of "
                              f"{store.parent['path']}. " + _redo_branch(store))
+        store._mesh()  # readable and this run's, before anything is written
         store._start_session()
         return store
 
@@ -396,8 +397,18 @@ class RunStore:
     # ------------------------------------------------------------------ mesh
 
     def _mesh(self):
+        """The mesh arrays of mesh.h5, read once, checked against run.json's SHA-256 of them
+        (ValueError: the mesh file is damaged, or run.json is another run's)."""
         if self._mesh_cache is None:
-            self._mesh_cache = _read_h5(self._path / MESH_H5, _read_mesh_arrays)
+            X0, faces, rest = _read_h5(self._path / MESH_H5, _read_mesh_arrays)
+            if array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items())) \
+                    != self._meta["mesh"]["sha256"]:
+                raise ValueError(
+                    f"{self._path / MESH_H5} does not match the mesh {RUN_JSON} describes "
+                    f"(SHA-256): the mesh file was changed or damaged, or {RUN_JSON} is "
+                    f"another run's; restore the folder from a backup (a {RUN_JSON} removed "
+                    f"is rebuilt from the copy in {MESH_H5})")
+            self._mesh_cache = X0, faces, rest
         return self._mesh_cache
 
     @property
