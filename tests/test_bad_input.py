@@ -30,8 +30,11 @@ def places(tmp_path_factory):
     (root / "full" / "notes.txt").write_text("x\n")
     (root / "ro").mkdir()
     os.chmod(root / "ro", 0o555)
+    (root / "blank.vtk").write_bytes(b"")
+    (root / "bad.vtu").write_text("garbage\n")
     yield {"run": str(run.path), "empty": str(root / "empty"), "file": str(root / "afile.txt"),
-           "full": str(root / "full"), "ro": str(root / "ro"), "root": root}
+           "full": str(root / "full"), "ro": str(root / "ro"), "root": root,
+           "blankvtk": str(root / "blank.vtk"), "badvtu": str(root / "bad.vtu")}
     os.chmod(root / "ro", 0o755)
 
 
@@ -46,6 +49,12 @@ CASES = [
     *[(["theory", flag, value], flag, value) for flag, value in NUMBERS],
     *[(["deflate", flag, value, "--out", "{tmp}/r"], flag, value) for flag, value in NUMBERS],
     (["deflate", "--gamma=-1e300", "--out", "{tmp}/r"], "--gamma", "-1e300"),
+    (["deflate", "--dv", "1e-5", "--until", "2e-5", "--out", "{tmp}/r"], "--dv", "1e-5"),
+    (["deflate", "--mesh", "{blankvtk}", "--out", "{tmp}/r"], "--mesh", "blank.vtk"),
+    (["deflate", "--mesh", "{badvtu}", "--out", "{tmp}/r"], "--mesh", "bad.vtu"),
+    (["classify", "{blankvtk}"], "blank.vtk", "cannot be read as .vtk"),
+    (["continue", "{run}", "--dv", "-1e-6", "--until", "0.04", "--out", "{tmp}/r"], "--dv",
+     "-1e-6"),
     (["deflate", "--gamma", "1e9", "--vertices", "200", "--out", "{tmp}/r"], "--gamma", "1e9"),
     (["deflate", "--gamma", "2e7", "--out", "{tmp}/r"], "--gamma", "2e7"),
     (["deflate", "--gamma", "20000", "--energy-convention", "paper", "--vertices", "300",

@@ -389,3 +389,14 @@ def test_a_changed_reference_mesh_is_refused_by_every_reader(folder, tmp_path):
         code, _, err = _cli(argv)
         assert code in (1, 2) and "does not match the mesh run.json describes" in err, err
         assert not (tmp_path / "c").exists() and not (tmp_path / "x.vtk").exists()
+
+
+def test_a_refusal_names_the_folder_once_and_keeps_the_rest_of_its_message(tmp_path,
+                                                                          monkeypatch):
+    """A folder named `e`: the message keeps every letter e and the paths of its advice."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "e").mkdir()
+    (tmp_path / "e" / "run.json").write_text("{bad")
+    code, _, err = _cli(["table", "e"])
+    assert code == 2 and err.count("DIR e: ") == 1
+    assert "e/run.json is not valid JSON (Expecting property name" in err

@@ -84,7 +84,8 @@ def _g(x) -> str:
 @dataclasses.dataclass(frozen=True)
 class Range:
     """An interval ``[low, high]`` (``low_open``/``high_open``: excluded ends; None: no end),
-    of integers with ``integer``; ``nonzero`` excludes 0. ``reason``: why these ends."""
+    of integers with ``integer``; ``nonzero`` excludes 0, ``min_abs`` every value nearer 0
+    than it. ``reason``: why these ends."""
 
     low: float | None
     high: float | None
@@ -92,6 +93,7 @@ class Range:
     high_open: bool = False
     integer: bool = False
     nonzero: bool = False
+    min_abs: float | None = None
     reason: str = ""
 
     def __str__(self) -> str:
@@ -105,6 +107,8 @@ class Range:
             text = f"{kind} {'<' if self.high_open else '<='} {_g(self.high)}"
         else:
             text = f"a finite {kind[2:]}" if not self.integer else kind
+        if self.min_abs is not None:
+            return text + f", at least {_g(self.min_abs)} from 0"
         return text + (", not 0" if self.nonzero else "")
 
     def explained(self) -> str:
@@ -118,7 +122,8 @@ class Range:
                                             else value < self.low)
         high_bad = self.high is not None and (value >= self.high if self.high_open
                                               else value > self.high)
-        if low_bad or high_bad or (self.nonzero and value == 0):
+        near = self.min_abs is not None and abs(value) < self.min_abs
+        if low_bad or high_bad or near or (self.nonzero and value == 0):
             return f"allowed: {self.explained()}"
         return None
 
@@ -149,7 +154,7 @@ RANGES = {
     "seed": Range(0, 2 ** 32 - 1, integer=True, reason="a 32-bit random seed"),
     "seeds": Range(1, 100, integer=True, reason="each seed is a full study"),
     "dv": Range(1e-4, 0.5, reason=_DV),
-    "dv_signed": Range(-0.5, 0.5, nonzero=True, reason="a negative step re-inflates; " + _DV),
+    "dv_signed": Range(-0.5, 0.5, min_abs=1e-4, reason="a negative step re-inflates; " + _DV),
     "until": Range(-1, 0.99, low_open=True, high_open=True, reason=_DVV),
     "until_deflated": Range(0, 0.99, low_open=True, high_open=True,
                             reason="dV/V = 0.99 leaves 1% of the volume"),
@@ -595,8 +600,10 @@ def run_folder(option: str, path):
         return Run.open(path)
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)
-        if str(path) in message:
-            message = message.replace(str(path), "").lstrip(" :")
+        for head in (f"{path}: ", f"{path} "):  # the folder named once, by the option
+            if message.startswith(head):
+                message = message[len(head):]
+                break
         raise ValueError(f"{option} {path}: {message}") from None
 
 

@@ -68,12 +68,26 @@ def read_mesh(path) -> Mesh:
         return read_evolver(path).mesh
     if not path.is_file():
         raise FileNotFoundError(f"mesh file {str(path)!r} does not exist")
+    import contextlib
+    import io
+
     import meshio
 
-    with warnings.catch_warnings():
-        # meshio probes an ASCII STL as binary first, which can overflow harmlessly
-        warnings.simplefilter("ignore", RuntimeWarning)
-        m = meshio.read(path, file_format=MESHIO_FORMATS[ext][0])
+    said = io.StringIO()
+    try:
+        with warnings.catch_warnings(), contextlib.redirect_stdout(said), \
+                contextlib.redirect_stderr(said):
+            # meshio probes an ASCII STL as binary first, which can overflow harmlessly
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m = meshio.read(path, file_format=MESHIO_FORMATS[ext][0])
+    except SystemExit:  # some of meshio's readers print their reason and exit
+        why = " ".join(said.getvalue().split()) or "no reason given"
+        raise ValueError(f"{str(path)!r} cannot be read as {ext} ({why})") from None
+    except (ValueError, KeyError, IndexError, EOFError, OSError, meshio.ReadError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise ValueError(f"{str(path)!r} cannot be read as {ext} "
+                         f"({type(exc).__name__}: {exc})") from None
     other = sorted({block.type for block in m.cells if block.type != "triangle"})
     if other:
         raise ValueError(f"{str(path)!r} contains {', '.join(other)} cells; only triangle cells "
