@@ -400,3 +400,43 @@ def test_a_refusal_names_the_folder_once_and_keeps_the_rest_of_its_message(tmp_p
     code, _, err = _cli(["table", "e"])
     assert code == 2 and err.count("DIR e: ") == 1
     assert "e/run.json is not valid JSON (Expecting property name" in err
+
+
+def _edit_run_json(edit):
+    def damage(folder):
+        meta = json.loads((folder / "run.json").read_text())
+        edit(meta)
+        (folder / "run.json").write_text(json.dumps(meta))
+    return damage
+
+
+def _run_json_a_folder(folder):
+    (folder / "run.json").unlink()
+    (folder / "run.json").mkdir()
+
+
+@pytest.mark.parametrize("damage, said", [
+    (_edit_run_json(lambda m: m.__setitem__("format_version", "2")), "not an integer"),
+    (_run_json_a_folder, "run.json is a folder"),
+    (lambda folder: (folder / "run.json").write_bytes(b'{"format": "\xff"}'), "utf-8"),
+    (_edit_run_json(lambda m: m["params"].__setitem__("gamma", "abc")),
+     "cannot be read"),
+], ids=["format_version text", "a folder", "not UTF-8", "gamma text"])
+@pytest.mark.parametrize("argv", [["table"], ["analyze"], ["resume", "--no-plot", "--no-locate"],
+                                  ["export", "--step", "-1", "--format", "vtk", "--out", "x.vtk"]],
+                         ids=lambda argv: argv[0])
+def test_a_damaged_run_json_is_refused_in_one_line_naming_it(folder, tmp_path, monkeypatch,
+                                                             damage, said, argv):
+    monkeypatch.chdir(tmp_path)
+    damage(folder)
+    before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    code, _, err = _cli([argv[0], str(folder), *argv[1:]])
+    if code == 0:  # analyze reads the stored shapes only: the parameters are not needed
+        assert argv[0] == "analyze" and said == "cannot be read"
+        return
+    # exit 2 where the folder is refused as input; 1 where the work found the damage
+    assert code in (1, 2) and said in err and "run.json" in err, err
+    assert code == 2 or said == "cannot be read"
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "x.vtk").exists()
+    assert {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
+            if p.is_file()} == before

@@ -31,10 +31,10 @@ from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
 from .protocol.spec import DEFAULT_MAX_ITER
 from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
-from .store.layout import RUN_JSON, SOLVER_MODE
+from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL
 from .store.run import RunStore
-from .store.view import Run
+from .store.view import Run, described
 from .util import interrupt_of
 
 log = logging.getLogger(__name__)
@@ -150,16 +150,9 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
         threads = check_threads(threads)
     def setup():
         # the description and the mesh checked before the store records a session
-        described = RunStore.open(path)
-        try:
-            params = ShellParameters.from_dict(described.params)
-            protocol = Protocol.from_dict(described.protocol)
-        except (ValueError, TypeError, KeyError, AttributeError) as exc:
-            raise ValueError(
-                f"{Path(path) / RUN_JSON}: its parameters or protocol cannot be read "
-                f"({type(exc).__name__}: {exc}); restore it from a backup, or move it away "
-                f"(`mv run.json run.json.bad`) to rebuild it from the copy in mesh.h5") from None
-        mesh = Mesh.from_arrays(described.X0, described.faces)
+        read = RunStore.open(path)
+        params, protocol = described(read)
+        mesh = Mesh.from_arrays(read.X0, read.faces)
         store = RunStore.resume(path)
         return store, mesh, params, protocol
 

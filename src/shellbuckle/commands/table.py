@@ -52,11 +52,11 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    store = run_folder("DIR", args.dir).store
-    from ..params import ShellParameters
+    run = run_folder("DIR", args.dir)
+    store = run.store
     from ..store.table import table_in_units
 
-    params = ShellParameters.from_dict(store.params)
+    params = run.params
     if args.units == "si" and not params.is_material:
         raise ValueError(f"--units si: the run {args.dir} has no material (--units si needs a "
                          "run made with --E --sigma --d --R)")

@@ -46,7 +46,11 @@ def check_format(data, file: Path, name: str, version: int) -> dict:
     ``version`` (ValueError otherwise); the check of ``run.json`` and ``sweep.json``."""
     if not isinstance(data, dict) or data.get("format") != name:
         raise ValueError(f"{file} is not a {name} description")
-    if data.get("format_version", 0) > version:
+    found = data.get("format_version", 0)
+    if isinstance(found, bool) or not isinstance(found, int):
+        raise ValueError(f"{file} has a format_version {found!r} that is not an integer; "
+                         "the file is damaged")
+    if found > version:
         raise ValueError(f"{file.parent} was written in {name} format version "
                          f"{data['format_version']}; this shellbuckle reads up to version "
                          f"{version}, please upgrade")

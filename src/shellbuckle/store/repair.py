@@ -41,6 +41,12 @@ def _read_meta(path: Path) -> tuple[dict, bool]:
         text = (path / RUN_JSON).read_text(encoding="utf-8")
     except FileNotFoundError:
         return _rebuilt_meta(path), True
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path / RUN_JSON} is not valid JSON ({exc}); "
+                         + _how_to_replace_run_json(path)) from None
+    except IsADirectoryError:
+        raise ValueError(f"{path / RUN_JSON} is a folder, not the run's description; "
+                         + _how_to_replace_run_json(path)) from None
     try:
         meta = json.loads(text)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:

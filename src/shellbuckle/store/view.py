@@ -22,7 +22,26 @@ import numpy as np
 from ..mesh.mesh import Mesh
 from ..params import ShellParameters
 from ..protocol.spec import Protocol
+from .layout import RUN_JSON
+from .repair import _how_to_replace_run_json
 from .run import RunStore, _span
+
+
+def described(store: RunStore, part: str | None = None):
+    """What ``run.json`` of ``store`` describes: ``part`` ``"params"`` (the
+    :class:`ShellParameters`), ``"protocol"`` (the :class:`Protocol`), or both as a tuple
+    (None); ValueError naming ``run.json`` and what to do when they cannot be read."""
+    build = {"params": ShellParameters.from_dict, "protocol": Protocol.from_dict}
+    parts = [part] if part is not None else list(build)
+    try:
+        found = [build[name](getattr(store, name)) for name in parts]
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        what = "parameters" if parts == ["params"] else (
+            "protocol" if parts == ["protocol"] else "parameters or protocol")
+        raise ValueError(f"{store.path / RUN_JSON}: its {what} cannot be read "
+                         f"({type(exc).__name__}: {exc}); "
+                         + _how_to_replace_run_json(store.path)) from None
+    return found[0] if part is not None else tuple(found)
 
 
 class Run:
@@ -57,11 +76,11 @@ class Run:
 
     @property
     def params(self) -> ShellParameters:
-        return ShellParameters.from_dict(self.store.params)
+        return described(self.store, "params")
 
     @property
     def protocol(self) -> Protocol:
-        return Protocol.from_dict(self.store.protocol)
+        return described(self.store, "protocol")
 
     @property
     def table(self):
