@@ -5,6 +5,8 @@ convenience methods. Tiny runs: icosphere(3), 92 vertices, a few steps."""
 import xml.etree.ElementTree as ET
 
 import meshio
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -170,6 +172,30 @@ def test_mp4_without_ffmpeg_exits_2_suggesting_gif(run, tmp_path, capsys, monkey
 
 
 # ------------------------------------------------------------------------------ p-V, Run methods
+def test_a_damaged_neighbour_is_left_out_of_the_family_with_a_warning(family, tmp_path, caplog):
+    """Searched in a folder holding a copy of the branch, a copy whose run.json names a parent
+    without a path and a copy whose run.json is not JSON: the family is the run and the
+    branch, and each damaged neighbour is named in a warning."""
+    import json
+    import shutil
+
+    from shellbuckle.plots.pv import family as find_family
+
+    run, back = family
+    here = tmp_path / "runs"
+    branch = shutil.copytree(back.path, here / "branch")  # its parent: the run itself
+    no_path = shutil.copytree(back.path, here / "no_path")
+    meta = json.loads((no_path / "run.json").read_text())
+    meta["parent"] = {"step": 1}
+    (no_path / "run.json").write_text(json.dumps(meta))
+    garbage = shutil.copytree(back.path, here / "garbage")
+    (garbage / "run.json").write_text("{not json")
+    with caplog.at_level("WARNING", logger="shellbuckle.plots.pv"):
+        members = find_family(run, search=here)
+    assert [Path(m.path) for m in members] == [Path(run.path), branch]
+    assert "no_path" in caplog.text and "garbage" in caplog.text
+
+
 def test_family_finds_the_branch_and_pv_draws_both_paths(family, tmp_path):
     from shellbuckle.plots.pv import family as find_family
 

@@ -19,6 +19,7 @@ with the class of the run it is given, so the Run itself can draw the figure
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -31,15 +32,26 @@ from .run import check_units, mark_jumps, p_c_label, pressure_unit
 __all__ = ["family", "plot_pv"]
 
 
+log = logging.getLogger(__name__)
+
 def _parent_path(run) -> Path | None:
+    """The folder of ``run``'s parent (None for a run that is no branch); ValueError if its
+    ``run.json`` names a parent without a path."""
     parent = run.store.parent
-    return None if not parent else Path(parent["path"]).resolve()
+    if not parent:
+        return None
+    path = parent.get("path") if isinstance(parent, dict) else None
+    if not isinstance(path, str):
+        raise ValueError(f"{Path(run.path) / 'run.json'} names a parent without its path")
+    return Path(path).resolve()
 
 
 def family(run, search=None) -> list:
     """``run`` and its branches (and theirs), in the order found: the run folders in
     ``search`` (default: the folder holding ``run``) whose ``run.json`` names ``run`` or one of
-    its branches as parent. Folders that are not runs are skipped."""
+    its branches as parent. Folders that are not runs are skipped, and run folders that cannot
+    be read are skipped with a warning naming them (a damaged neighbour does not stop the
+    figure of ``run``)."""
     opener = type(run)
     root = Path(run.path).resolve()
     search = root.parent if search is None else Path(search)
@@ -48,16 +60,17 @@ def family(run, search=None) -> list:
         if folder.resolve() == root:
             continue
         try:
-            candidates.append(opener.open(folder))
-        except (ValueError, OSError):
-            continue
+            other = opener.open(folder)
+            candidates.append((other, _parent_path(other)))
+        except (ValueError, OSError) as exc:
+            log.warning("%s is left out of the branches of %s: %s", folder, run.path, exc)
     members, known = [run], {root}
     grew = True
     while grew:
         grew = False
-        for other in candidates:
+        for other, parent in candidates:
             path = Path(other.path).resolve()
-            if path not in known and _parent_path(other) in known:
+            if path not in known and parent in known:
                 members.append(other)
                 known.add(path)
                 grew = True
