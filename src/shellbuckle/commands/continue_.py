@@ -126,6 +126,10 @@ def _volume_path(parent, step: int, args, options: dict):
                          f"dV/V = {start:.6g}; a step --dv {typed(args, '--dv', dv)} "
                          f"{'deflates' if dv > 0 else 're-inflates'}: allowed: --until "
                          f"{'above' if dv > 0 else 'below'} {start:.6g}")
+    if abs(until - start) < abs(dv) * (1 - 1e-9):
+        raise ValueError(f"--until {typed(args, '--until', until)}: the path starts at dV/V = "
+                         f"{start:.6g}; allowed: at least one step --dv {typed(args, '--dv', dv)} "
+                         "from it")
     check_steps("--dv", typed(args, "--dv", dv), abs(until - start) / abs(dv))
     return continue_from(parent, step, args.out,
                          dv=defaults["dv"] if args.dv is None else args.dv,
@@ -169,12 +173,13 @@ def _parameter_path(parent, step: int, args, options: dict):
     if args.then_deflate_to is not None:
         then_out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
         output_folder("--then-out", then_out, run=True)
+        _then_out_free(then_out, Path(args.out), typed(args, "--then-out", then_out))
         start = float(parent.table["dV_over_V"].iloc[step])
-        if args.then_deflate_to == start:
-            raise ValueError(f"--then-deflate-to {typed(args, '--then-deflate-to')}: the path "
-                             f"is at dV/V = {start:.6g} already; allowed: another dV/V in "
-                             f"{RANGES['until']}")
         dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
+        if abs(args.then_deflate_to - start) < dv * (1 - 1e-9):
+            raise ValueError(f"--then-deflate-to {typed(args, '--then-deflate-to')}: the path "
+                             f"is at dV/V = {start:.6g}; allowed: {RANGES['until']}, at least "
+                             f"one step --dv {dv:g} from it")
         check_steps("--then-deflate-to", typed(args, "--then-deflate-to"),
                     abs(args.then_deflate_to - start) / dv)
     elif args.then_out is not None:
@@ -190,6 +195,29 @@ def _parameter_path(parent, step: int, args, options: dict):
                          until=args.then_deflate_to, progress=not args.quiet)
     report_run(last)
     return last
+
+
+def _then_out_free(then_out: Path, out: Path, text) -> None:
+    """``--then-out``: not the path's own folder, and a run there only the second part of this
+    same command (a branch of the run in ``out``, resumed), checked before the first part
+    runs."""
+    import json
+
+    from ..store.names import RUN_JSON
+
+    if then_out.resolve() == out.resolve():
+        raise ValueError(f"--then-out {text}: is the --out folder of the path; the deflation "
+                         "after it needs its own folder")
+    if not (then_out / RUN_JSON).is_file():
+        return
+    try:
+        parent = (json.loads((then_out / RUN_JSON).read_text(encoding="utf-8"))
+                  .get("parent") or {}).get("path")
+    except (ValueError, OSError, AttributeError):
+        parent = None
+    if parent is None or Path(parent).resolve() != out.resolve():
+        raise ValueError(f"--then-out {text}: holds another run (not the deflation after the "
+                         f"path in {out}); choose another folder")
 
 
 def _target(option: str, text: str, start: float):
