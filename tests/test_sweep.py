@@ -480,3 +480,40 @@ def test_a_damaged_sweep_record_is_refused_in_one_line(tmp_path, capsys, damage,
     err = capsys.readouterr().err.strip()
     assert said in err and len(err.splitlines()) == 1
     assert sorted(p.name for p in out.iterdir()) == listing
+
+
+def test_a_lost_run_of_a_sweep_is_named_and_a_file_in_its_place_refused(reference_sweep,
+                                                                         tmp_path, caplog,
+                                                                         capsys):
+    import shutil
+
+    from shellbuckle.analysis.collect import run_folders
+
+    out, catalogue = reference_sweep
+    copy = Path(shutil.copytree(out, tmp_path / "sweep"))
+    held = {p.name for p in copy.iterdir() if (p / "run.json").is_file()}
+    finished = list(catalogue.loc[catalogue["status"] == "finished", "name"])
+    lost, replaced = finished[0], finished[1]
+    shutil.rmtree(copy / lost)
+    shutil.rmtree(copy / replaced)
+    (copy / replaced).write_text("not a run")
+    with caplog.at_level("WARNING", logger="shellbuckle.analysis.collect"):
+        found = run_folders(copy)
+    assert {p.name for p in found} == held - {lost, replaced}
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1 and lost in warned[0] and replaced in warned[0]
+    # the command line says so in its one-line warning format (a process of its own: the
+    # logging of this one is pytest's)
+    done = subprocess.run([sys.executable, "-m", "shellbuckle", "report", str(copy), "--out",
+                           str(tmp_path / "r.md"), "--no-figures"], capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    lines = [line for line in done.stderr.splitlines() if lost in line]
+    assert len(lines) == 1 and lines[0].startswith("shellbuckle report: warning: ")
+    # a file where the sweep keeps a run's folder: the sweep refuses before any work
+    before = (copy / SWEEP_JSON).read_text()
+    assert cli_main(["sweep", "--gamma", "271", "--icosphere", "3", "--quiet",
+                     "--out", str(copy)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"--out {copy}: has a file {replaced}" in err and len(err.splitlines()) == 1
+    assert (copy / SWEEP_JSON).read_text() == before

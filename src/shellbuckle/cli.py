@@ -77,11 +77,26 @@ def _sigterm_interrupts():
         signal.signal(signal.SIGTERM, previous)
 
 
+class _Plain(logging.Formatter):
+    """A log record as the command line's one-line warnings: ``shellbuckle CMD: warning: ...``."""
+
+    def __init__(self, command):
+        super().__init__()
+        self.head = f"shellbuckle {command}" if command else "shellbuckle"
+
+    def format(self, record) -> str:
+        return f"{self.head}: {record.levelname.lower()}: {record.getMessage()}"
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    # plain: `shellbuckle CMD: warning: ...` (docs/errors.md); -v: every record with its logger
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s")
+                         if args.verbose else _Plain(getattr(args, "command", None)))
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
+                        handlers=[handler])
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

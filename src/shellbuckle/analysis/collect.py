@@ -50,6 +50,33 @@ REFERENCE_NAME = "quilliet2008.json"
 
 # --------------------------------------------------------------------------- finding runs
 
+def _missing_runs(path: Path, missing: list[str], total: int) -> None:
+    """Say which runs of the sweep ``path`` have no run folder: a warning naming those the
+    catalogue lists with a status (they had started: their folder was moved, deleted or
+    replaced) or whose name is a file, an info line for the others (pending, or failed before
+    starting)."""
+    import csv
+
+    from ..store.catalogue import CATALOGUE_CSV
+
+    statuses = {}
+    try:
+        with open(path / CATALOGUE_CSV, newline="", encoding="utf-8") as f:
+            statuses = {row.get("name"): row.get("status") for row in csv.DictReader(f)}
+    except (OSError, UnicodeDecodeError, csv.Error):
+        pass
+    # (a failed run may have failed before its folder was made: not counted as lost)
+    lost = [n for n in missing if (path / n).exists() or statuses.get(n) in
+            ("finished", "paused", "interrupted", "running")]
+    if lost:
+        log.warning("%s: %d run(s) of the sweep have no readable run folder although they had "
+                    "started (moved, deleted or damaged), left out: %s", path, len(lost),
+                    ", ".join(lost))
+    if len(lost) < len(missing):
+        log.info("%s: %d of %d runs of the sweep have no run folder yet (pending or failed "
+                 "before starting); skipped", path, len(missing) - len(lost), total)
+
+
 def _run_folders(path: Path) -> list[Path]:
     """The run folders a path stands for: itself, the runs of a sweep, or the run and sweep
     folders directly inside it (ValueError if none)."""
@@ -67,8 +94,8 @@ def _run_folders(path: Path) -> list[Path]:
         names = list(read_sweep_file(path)["runs"])
         found = [path / n for n in names if (path / n / RUN_JSON).exists()]
         if len(found) < len(names):
-            log.info("%s: %d of %d runs of the sweep have no run folder yet (pending or failed "
-                     "before starting); skipped", path, len(names) - len(found), len(names))
+            _missing_runs(path, [n for n in names if not (path / n / RUN_JSON).exists()],
+                          len(names))
         return found
     found = []
     for sub in sorted(p for p in path.iterdir() if p.is_dir()):

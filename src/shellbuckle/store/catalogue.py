@@ -144,6 +144,10 @@ def check_sweep_folder(out_dir, runs: dict[str, dict]) -> dict | None:
                              "choose a new or empty folder with --out")
         return None
     data = read_sweep_file(out_dir)
+    for name in sorted(set(data["runs"]) | set(runs)):
+        if (out_dir / name).exists() and not (out_dir / name).is_dir():
+            raise ValueError(f"{out_dir} has a file {name} where the sweep keeps that run's "
+                             "folder; move it away (or restore the run folder)")
     runs = json.loads(json.dumps(runs))
     for name, point in runs.items():
         held = data["runs"].get(name)
