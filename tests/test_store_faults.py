@@ -440,3 +440,12 @@ def test_a_damaged_run_json_is_refused_in_one_line_naming_it(folder, tmp_path, m
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "x.vtk").exists()
     assert {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
             if p.is_file()} == before
+
+
+def test_resuming_a_finished_run_keeps_its_message_and_steps(folder, reference):
+    before = json.loads((folder / "run.json").read_text())
+    run = resume(folder)
+    after = json.loads((folder / "run.json").read_text())
+    assert before["status"] == after["status"] == "finished"
+    assert after["message"] == before["message"] and "(dV/V = " in after["message"]
+    _same_rows(run.table, reference[1], ignore=("wall_s",))

@@ -460,10 +460,12 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
     else:
         record = store.record(last)
         state = protocol_mod.state_after(last, store.positions(last), record)
+        # the messages of the step that ended it (protocol.deflate.step), kept on a resume
+        at = f"(dV/V = {record['dV_over_V']:.4f})"
         if record.get("self_intersecting") and protocol.stop_at_contact:
-            state = State(step=last, X=state.X, stopped="self-intersection")
+            state = State(step=last, X=state.X, stopped=f"self-intersection at step {last} {at}")
         elif last >= len(protocol.schedule):
-            state = State(step=last, X=state.X, stopped="end of the schedule")
+            state = State(step=last, X=state.X, stopped=f"end of the schedule {at}")
     bar = _progress(progress, len(protocol.schedule), state.step, mesh, params)
     done, ended = 0, True
     try:
