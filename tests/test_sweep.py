@@ -517,3 +517,18 @@ def test_a_lost_run_of_a_sweep_is_named_and_a_file_in_its_place_refused(referenc
     err = capsys.readouterr().err.strip()
     assert f"--out {copy}: has a file {replaced}" in err and len(err.splitlines()) == 1
     assert (copy / SWEEP_JSON).read_text() == before
+
+
+def test_a_finished_run_with_a_damaged_mesh_is_no_success_in_the_catalogue(reference_sweep,
+                                                                           tmp_path):
+    import shutil
+
+    out, catalogue = reference_sweep
+    copy = Path(shutil.copytree(out, tmp_path / "sweep"))
+    name = catalogue.loc[catalogue["status"] == "finished", "name"].iloc[0]
+    mesh = copy / name / "mesh.h5"
+    mesh.write_bytes(mesh.read_bytes()[: mesh.stat().st_size // 2])
+    row = Catalogue.load(copy).set_index("name").loc[name]
+    assert row["status"] == "failed" and "mesh.h5" in row["message"]
+    others = Catalogue.load(copy).set_index("name").drop(index=name)
+    assert (others["status"] == catalogue.set_index("name").drop(index=name)["status"]).all()

@@ -67,7 +67,7 @@ import pandas as pd
 
 from ..util import now
 from .atomic import atomic_write_bytes
-from .run import ANALYSIS_JSON, RUN_JSON, STEPS_DIR, RunStore, check_format
+from .run import ANALYSIS_JSON, MESH_H5, RUN_JSON, STEPS_DIR, RunStore, check_format
 
 log = logging.getLogger(__name__)
 
@@ -330,6 +330,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
         try:
             store = RunStore.open(folder)
             meta = store.meta
+            store.check_mesh()
             table = store.table()
         except ValueError as exc:
             row.update(_parameters(point, meta), status="failed", message=str(exc))
@@ -365,7 +366,8 @@ def _signature(out_dir: Path, name: str):
     """What changes whenever a row can change: mtimes and sizes of the files it is read from."""
     folder = out_dir / name
     parts = []
-    for path in (folder / RUN_JSON, folder / ANALYSIS_JSON, attempts_path(out_dir, name),
+    for path in (folder / RUN_JSON, folder / MESH_H5, folder / ANALYSIS_JSON,
+                 attempts_path(out_dir, name),
                  traceback_path(out_dir, name)):
         try:
             st = path.stat()

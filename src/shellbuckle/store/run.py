@@ -274,7 +274,7 @@ class RunStore:
                              f"{'damaged' if 0 in store.damaged else 'not stored'}; it is "
                              f"the step it starts from, step {store.parent['step']} of "
                              f"{store.parent['path']}. " + _redo_branch(store))
-        store._mesh()  # readable and this run's, before anything is written
+        store.check_mesh()  # readable and this run's, before anything is written
         store._start_session()
         return store
 
@@ -410,6 +410,11 @@ class RunStore:
                     f"is rebuilt from the copy in {MESH_H5})")
             self._mesh_cache = X0, faces, rest
         return self._mesh_cache
+
+    def check_mesh(self) -> None:
+        """ValueError unless mesh.h5 is readable and is the mesh run.json describes (its
+        SHA-256)."""
+        self._mesh()
 
     @property
     def X0(self) -> np.ndarray:
