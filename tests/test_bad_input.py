@@ -31,10 +31,12 @@ def places(tmp_path_factory):
     (root / "ro").mkdir()
     os.chmod(root / "ro", 0o555)
     (root / "blank.vtk").write_bytes(b"")
+    (root / "steps_link").symlink_to(run.path / "steps", target_is_directory=True)
     (root / "bad.vtu").write_text("garbage\n")
     yield {"run": str(run.path), "empty": str(root / "empty"), "file": str(root / "afile.txt"),
            "full": str(root / "full"), "ro": str(root / "ro"), "root": root,
-           "blankvtk": str(root / "blank.vtk"), "badvtu": str(root / "bad.vtu")}
+           "blankvtk": str(root / "blank.vtk"), "badvtu": str(root / "bad.vtu"),
+           "link": str(root / "steps_link")}
     os.chmod(root / "ro", 0o755)
 
 
@@ -338,6 +340,10 @@ CASES = [
     (["export", "{run}", "--step", "-1", "--format", "vtk", "--out", "{run}/steps/s.vtk"],
      "--out", "run/steps/s.vtk"),
     (["plot", "{run}", "--out", "{run}/steps"], "--out", "run/steps"),
+    (["export", "{run}", "--format", "xdmf", "--out", "{link}/step_000001.xdmf"], "--out",
+     "steps_link/step_000001.xdmf"),
+    (["report", "{run}", "--out", "{run}/steps/../steps/r.md", "--no-figures"], "--out",
+     "steps/../steps/r.md"),
     (["continue", "{run}", "--gamma", "300", "--out", "{run}/steps/b"], "--out",
      "run/steps/b"),
     # reproduce-paper

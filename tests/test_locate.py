@@ -133,7 +133,10 @@ def test_the_located_point_lies_on_the_sphere_branch_just_before_its_end(runs):
     assert record["dV_over_V"] == pytest.approx(branch["end_lo"], abs=1e-12)
     assert record["converged"] and classify(X, run.faces).shape == "sphere"
     ctx = step_to.ctx
-    assert lowest_eigenvalues(ctx.energy, ctx.volume, X, ctx.pinned, k=1)[0] > 0
+    lowest = lowest_eigenvalues(ctx.energy, ctx.volume, X, ctx.pinned, k=1)[0]
+    # a proper minimum, and nearer the fold than the located point: the branch's lowest
+    # eigenvalue falls towards zero along it
+    assert 0 < lowest < 0.5 * p["old"]["lowest_eigenvalue"], (lowest, p["old"])
     assert [e["ends"] for e in walk if e["dV_over_V"] == branch["end_hi"]] == [True]
     middle = 0.5 * (branch["end_lo"] + branch["end_hi"])
     assert branch["anticipation"] == pytest.approx(1 - p["dV_over_V"] / middle)
@@ -362,7 +365,7 @@ def test_old_branch_follows_the_branch_without_jiggle_and_brackets_its_end(monke
     if end is None:
         assert found["followed_to"] == pytest.approx(hi + step) and found["end_lo"] is None
         return
-    assert found["end_lo"] < end <= found["end_hi"]
+    assert found["end_lo"] < end <= found["end_hi"] and found["ended_by"] == "jump"
     assert found["end_hi"] - found["end_lo"] <= max(tol, 0.01 * found["end_hi"])
     located_at = 0.5 * (lo + hi)
     assert found["anticipation"] == pytest.approx(
@@ -411,6 +414,7 @@ def test_old_branch_ends_where_no_minimum_is_found(monkeypatch):
     branch = _Branch(0.0149, stalls=(0.0120, 0.0149))
     found = _follow(monkeypatch, branch)
     assert found["end_lo"] < 0.0120 <= found["end_hi"] and "failure" not in found
+    assert found["ended_by"] == "no minimum"
     assert found["end_hi"] - found["end_lo"] <= 0.01 * found["end_hi"]
     walk = found["evaluations"]
     assert all(e["ends"] for e in walk if not e["converged"])

@@ -379,16 +379,26 @@ def test_resume_refuses_a_run_it_cannot_read_before_writing_anything(folder, tmp
 
 
 def test_a_changed_reference_mesh_is_refused_by_every_reader(folder, tmp_path):
-    """A reference shape changed in place is another shell: no new run starts from it, and
-    its steps are not exported on it."""
+    """A reference shape changed in place is another shell: no new run starts from it, its
+    steps are not exported, drawn or located on it, and running its command again does not
+    reopen it (exit 2 and every file as it was)."""
     _changed_reference(folder, tmp_path)
+    before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
     for argv in (["continue", str(folder), "--until", "0.3", "--out", str(tmp_path / "c"),
                   "--quiet", "--no-plot"],
                  ["export", str(folder), "--step", "-1", "--format", "vtk", "--out",
-                  str(tmp_path / "x.vtk")]):
+                  str(tmp_path / "x.vtk")],
+                 ["plot", str(folder), "--out", str(tmp_path / "c")],
+                 ["locate", str(folder)],
+                 ["deflate", "--icosphere", "4", "--gamma", "271", "--dv", "0.03", "--until",
+                  "0.18", "--jiggle", "0.02", "--seed", "7", "--threads", "1", "--out",
+                  str(folder), "--quiet", "--no-plot"]):  # the same run again
         code, _, err = _cli(argv)
-        assert code in (1, 2) and "does not match the mesh run.json describes" in err, err
+        assert code == 2 and "does not match the mesh run.json describes" in err, err
+        assert len(err.strip().splitlines()) == 1
         assert not (tmp_path / "c").exists() and not (tmp_path / "x.vtk").exists()
+    assert {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
+            if p.is_file()} == before
 
 
 def test_a_refusal_names_the_folder_once_and_keeps_the_rest_of_its_message(tmp_path,

@@ -51,6 +51,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .store.names import refuse_store_file
+
 log = logging.getLogger(__name__)
 
 __all__ = ["FORMATS", "SERIES_FORMATS", "RunFields", "export_step", "export_conformation",
@@ -211,24 +213,12 @@ def export_conformation(run, X, path, fmt: str | None = None, *, values: dict | 
                   lambda: _numeric_metadata(run) | (values or {}))
 
 
-def _not_a_store_file(path: Path) -> None:
-    """ValueError if ``path`` is a file of a run or sweep folder's store (or inside its
-    ``steps/``), which an export must never overwrite."""
-    from .store.names import store_file
-
-    found = store_file(path)
-    if found is not None:
-        folder, entry, kind = found
-        raise ValueError(f"{str(path)!r} belongs to the {kind} in {str(folder)!r} ({entry}); "
-                         "an export is written elsewhere")
-
-
 def _write(run, X: np.ndarray, path: Path, fmt: str, title: str, field_values) -> Path:
     """``X`` on the run's mesh in ``path`` (format ``fmt``), with the fields of the module
     docstring; ``field_values()`` gives a vtu file's field data, ``title`` heads an fe file."""
     if not path.parent.is_dir():
         raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
-    _not_a_store_file(path)
+    refuse_store_file(path)
     fields = RunFields.of(run)
     if fmt == "fe":
         return _export_evolver(run, X, fields, path, title)
@@ -412,8 +402,7 @@ def export_series(run, path, fmt: str | None = None, steps=None) -> Path:
     if not steps:
         raise ValueError(f"run {str(run.path)!r} has no finished step to export")
     h5_path = path.with_suffix(".h5")
-    _not_a_store_file(path)
-    _not_a_store_file(h5_path)
+    refuse_store_file(path, [h5_path])
     fields = RunFields.of(run)
     faces = np.asarray(run.faces, dtype=np.int64)
     table = run.table

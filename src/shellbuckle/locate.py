@@ -215,12 +215,10 @@ class StepFromStored:
 
 
 def _ends_converged(point: dict) -> bool:
-    """Whether a stored point's brackets are made of converged minimizations (a location made
-    before unconverged evaluations ended a bisection or the old branch may hold one; it is
-    located again)."""
-    bisection = point.get("evaluations") or []
-    if any(not e.get("converged", True) for e in bisection[:-1]) or (
-            bisection and not bisection[-1].get("converged", True) and point.get("complete")):
+    """Whether a stored point's bracket ends (its old and new sides) and its old branch's walk
+    rest on converged minimizations (a location made before unconverged evaluations ended a
+    bisection or the walk may not; it is located again)."""
+    if any(not (point.get(side) or {}).get("converged", True) for side in ("old", "new")):
         return False
     walk = (point.get("old_branch") or {}).get("evaluations") or []
     return all(e.get("ends") or e.get("converged", True) for e in walk)
@@ -352,7 +350,10 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
     ``undetermined`` when a step of the walk leaves the physical domain before an end is
     bracketed (``failure`` says which; a failure inside the bisection keeps the bracket had
     so far and says so too); ``followed_to``, the furthest volume reached on the old branch;
-    ``end_lo``, ``end_hi``, the bracket of its end, and ``anticipation``, ``1 - located /
+    ``end_lo``, ``end_hi``, the bracket of its end, ``ended_by``, what the step at ``end_hi``
+    found (``"jump"``: the event with a jump; ``"no minimum"``: its minimization did not
+    converge, the fold's signature, but also that of a minimizer out of iterations), and
+    ``anticipation``, ``1 - located /
     end`` with the bracket's middle as the end (all None when it goes on); ``evaluations``,
     each step (volume, class, whether it shows the event, whether it ended the branch, energy,
     pressure, convergence)."""
@@ -364,6 +365,7 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
 
     def found(**values) -> dict:
         return {"followed_to": last, "end_lo": None, "end_hi": None, "anticipation": None,
+                "ended_by": None,
                 "evaluations": walk} | values
 
     def follow(v):
@@ -402,7 +404,10 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
         else:
             X, record, last = state.X, rec, mid
     anticipation = 1.0 - located_at / (0.5 * (last + end))
-    return found(end_lo=last, end_hi=end, anticipation=anticipation, **failed,
+    at_end = [e for e in walk if e["dV_over_V"] == end and e["ends"]]
+    ended_by = "no minimum" if at_end and not at_end[-1]["converged"] else "jump"
+    return found(end_lo=last, end_hi=end, anticipation=anticipation, ended_by=ended_by,
+                 **failed,
                  mechanism="instability" if anticipation <= ANTICIPATION else "barrier crossing")
 
 

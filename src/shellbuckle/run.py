@@ -150,11 +150,9 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
         threads = check_threads(threads)
     def setup():
         # the description and the mesh checked before the store records a session
-        read = RunStore.open(path)
-        params, protocol = described(read)
-        mesh = Mesh.from_arrays(read.X0, read.faces)
-        store = RunStore.resume(path)
-        return store, mesh, params, protocol
+        params, protocol = described(RunStore.open(path))
+        store = RunStore.resume(path)  # checks mesh.h5 before it records a session
+        return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
     return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
                   locate=locate_tol if locate else None)
@@ -460,12 +458,9 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
     else:
         record = store.record(last)
         state = protocol_mod.state_after(last, store.positions(last), record)
-        # the messages of the step that ended it (protocol.deflate.step), kept on a resume
-        at = f"(dV/V = {record['dV_over_V']:.4f})"
-        if record.get("self_intersecting") and protocol.stop_at_contact:
-            state = State(step=last, X=state.X, stopped=f"self-intersection at step {last} {at}")
-        elif last >= len(protocol.schedule):
-            state = State(step=last, X=state.X, stopped=f"end of the schedule {at}")
+        stopped = protocol_mod.stop_message(protocol, last, record)  # the run had ended
+        if stopped is not None:
+            state = State(step=last, X=state.X, stopped=stopped)
     bar = _progress(progress, len(protocol.schedule), state.step, mesh, params)
     done, ended = 0, True
     try:

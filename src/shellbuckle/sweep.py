@@ -527,7 +527,8 @@ def run_name(point: dict) -> str:
 
 def _run_state(folder: Path, analyze: bool) -> str:
     """``done`` (finished, and analysed when asked), ``analyze`` (finished, not analysed),
-    ``failed``, or ``todo`` (absent or resumable). Reads only; never takes a lock."""
+    ``failed`` (failed, or finished with a mesh.h5 that is not its run.json's, as the
+    catalogue lists it), or ``todo`` (absent or resumable). Reads only; never takes a lock."""
     from .store.run import RUN_JSON, RunStore
 
     if not (folder / RUN_JSON).exists():
@@ -537,6 +538,10 @@ def _run_state(folder: Path, analyze: bool) -> str:
     except ValueError:
         return "todo"
     if store.status == "finished":
+        try:
+            store.check_mesh()
+        except ValueError:
+            return "failed"
         if analyze and _analysis_available() and not analysis_complete(store):
             return "analyze"
         return "done"

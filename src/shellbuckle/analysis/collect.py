@@ -66,7 +66,7 @@ def _missing_runs(path: Path, missing: list[str], total: int) -> None:
     except (OSError, UnicodeDecodeError, csv.Error):
         pass
     # (a failed run may have failed before its folder was made: not counted as lost)
-    lost = [n for n in missing if (path / n).exists() or statuses.get(n) in
+    lost = [n for n in missing if (path / n).is_file() or statuses.get(n) in
             ("finished", "paused", "interrupted", "running")]
     if lost:
         log.warning("%s: %d run(s) of the sweep have no readable run folder although they had "

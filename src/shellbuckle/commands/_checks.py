@@ -30,6 +30,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..store.names import refuse_store_file
 from ..util import interrupt_of
 
 
@@ -84,15 +85,14 @@ def _g(x) -> str:
 @dataclasses.dataclass(frozen=True)
 class Range:
     """An interval ``[low, high]`` (``low_open``/``high_open``: excluded ends; None: no end),
-    of integers with ``integer``; ``nonzero`` excludes 0, ``min_abs`` every value nearer 0
-    than it. ``reason``: why these ends."""
+    of integers with ``integer``; ``min_abs`` excludes every value nearer 0 than it.
+    ``reason``: why these ends."""
 
     low: float | None
     high: float | None
     low_open: bool = False
     high_open: bool = False
     integer: bool = False
-    nonzero: bool = False
     min_abs: float | None = None
     reason: str = ""
 
@@ -109,7 +109,7 @@ class Range:
             text = f"a finite {kind[2:]}" if not self.integer else kind
         if self.min_abs is not None:
             return text + f", at least {_g(self.min_abs)} from 0"
-        return text + (", not 0" if self.nonzero else "")
+        return text
 
     def explained(self) -> str:
         return f"{self}" + (f" ({self.reason})" if self.reason else "")
@@ -123,7 +123,7 @@ class Range:
         high_bad = self.high is not None and (value >= self.high if self.high_open
                                               else value > self.high)
         near = self.min_abs is not None and abs(value) < self.min_abs
-        if low_bad or high_bad or near or (self.nonzero and value == 0):
+        if low_bad or high_bad or near:
             return f"allowed: {self.explained()}"
         return None
 
@@ -515,30 +515,11 @@ def output_file(option: str, path, suffixes=(), *, beside=()) -> Path:
         raise ValueError(f"{option} {path}: is a folder; expected a file name")
     if suffixes and path.suffix.lower() not in suffixes:
         raise ValueError(f"{option} {path}: allowed suffixes {', '.join(suffixes)}")
-    _not_a_store_file(option, path, [path.with_suffix(s) for s in beside])
+    refuse_store_file(path, [path.with_suffix(s) for s in beside], option=option)
     _parent(option, path)
     if path.exists() and not os.access(path, os.W_OK):
         raise ValueError(f"{option} {path}: the file exists and is not writable")
     return path
-
-
-def _not_a_store_file(option: str, path: Path, also=()) -> None:
-    """Refuse ``path`` (or a file written beside it, ``also``) if it is a file of a run or
-    sweep folder, which only the store writes."""
-    from ..store.names import store_file
-
-    for target in (path, *also):
-        found = store_file(target)
-        if found is None:
-            continue
-        folder, entry, kind = found
-        beside = "" if target == path else f" (it writes {target.name} beside it)"
-        if target.name == entry:
-            what = f"{entry} belongs to the {kind} in {folder}"
-        else:
-            what = f"{target.name} would be inside {entry}/ of the {kind} in {folder}"
-        raise ValueError(f"{option} {path}: {what}{beside}, which only the {kind}'s store "
-                         "writes; write elsewhere")
 
 
 def output_folder(option: str, path, *, run: bool = False) -> Path:
@@ -547,7 +528,7 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
     ``run``: a run folder, which may be a previous run there (it is resumed or refused by the
     run's own rules)."""
     path = Path(path)
-    _not_a_store_file(option, path)
+    refuse_store_file(path, option=option)
     if path.exists():
         if not path.is_dir():
             raise ValueError(f"{option} {path}: is an existing file; expected a folder")
@@ -589,18 +570,22 @@ def scheduler_address(option: str, text) -> None:
 
 
 def run_folder(option: str, path):
-    """The :class:`~shellbuckle.run.Run` in ``path``; ``ValueError`` naming the option (a path
-    that is missing or a file is refused before the run store is loaded)."""
+    """The :class:`~shellbuckle.run.Run` in ``path``, its ``mesh.h5`` the one its ``run.json``
+    describes; ``ValueError`` naming the option (a path that is missing or a file is refused
+    before the run store is loaded)."""
     from ..store.folder import check_run_folder
 
     try:
         check_run_folder(path)
         from ..run import Run
 
-        return Run.open(path)
+        run = Run.open(path)
+        run.store.check_mesh()
+        return run
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)
-        for head in (f"{path}: ", f"{path} "):  # the folder named once, by the option
+        named = str(path).rstrip("/") or str(path)
+        for head in (f"{path}: ", f"{path} ", f"{named}: ", f"{named} "):  # named once
             if message.startswith(head):
                 message = message[len(head):]
                 break

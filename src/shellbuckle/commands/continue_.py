@@ -106,6 +106,7 @@ def continue_run(args) -> int:
 
 
 def _volume_path(parent, step: int, args, options: dict):
+    from ..protocol.schedule import steps_between
     from ..run import continue_from
 
     for flag in ("increments", "then_deflate_to", "then_out"):
@@ -126,7 +127,7 @@ def _volume_path(parent, step: int, args, options: dict):
                          f"dV/V = {start:.6g}; a step --dv {typed(args, '--dv', dv)} "
                          f"{'deflates' if dv > 0 else 're-inflates'}: allowed: --until "
                          f"{'above' if dv > 0 else 'below'} {start:.6g}")
-    if abs(until - start) < abs(dv) * (1 - 1e-9):
+    if not steps_between(start, until, dv):
         raise ValueError(f"--until {typed(args, '--until', until)}: the path starts at dV/V = "
                          f"{start:.6g}; allowed: at least one step --dv {typed(args, '--dv', dv)} "
                          "from it")
@@ -138,6 +139,7 @@ def _volume_path(parent, step: int, args, options: dict):
 
 
 def _parameter_path(parent, step: int, args, options: dict):
+    from ..protocol.schedule import steps_between
     from ..run import continue_from, continue_in_parameter
     from ._output import report_run
 
@@ -176,7 +178,8 @@ def _parameter_path(parent, step: int, args, options: dict):
         _then_out_free(then_out, Path(args.out), typed(args, "--then-out", then_out))
         start = float(parent.table["dV_over_V"].iloc[step])
         dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
-        if abs(args.then_deflate_to - start) < dv * (1 - 1e-9):
+        if not steps_between(start, args.then_deflate_to,
+                             dv if args.then_deflate_to > start else -dv):
             raise ValueError(f"--then-deflate-to {typed(args, '--then-deflate-to')}: the path "
                              f"is at dV/V = {start:.6g}; allowed: {RANGES['until']}, at least "
                              f"one step --dv {dv:g} from it")

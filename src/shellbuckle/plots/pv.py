@@ -34,6 +34,7 @@ __all__ = ["family", "plot_pv"]
 
 log = logging.getLogger(__name__)
 
+
 def _parent_path(run) -> Path | None:
     """The folder of ``run``'s parent (None for a run that is no branch); ValueError if its
     ``run.json`` names a parent without a path."""

@@ -636,9 +636,15 @@ def step(ctx: Context, state: State):
         record["gamma"] = float(ctx.params.gamma)
     if pressure is not None:
         record["target_pressure"] = float(pressure)
-    stopped = None
-    if p.stop_at_contact and record["self_intersecting"]:
-        stopped = f"self-intersection at step {k} (dV/V = {record['dV_over_V']:.4f})"
-    elif k == len(p.schedule):
-        stopped = f"end of the schedule (dV/V = {record['dV_over_V']:.4f})"
-    return state_after(k, result.x, record, stopped), record
+    return state_after(k, result.x, record, stop_message(p, k, record)), record
+
+
+def stop_message(protocol: Protocol, k: int, record: dict) -> str | None:
+    """Why a run ends at its step ``k`` (its record ``record``), or None: the run's message
+    at the end, also when a resumed run finds it had ended."""
+    at = f"(dV/V = {record['dV_over_V']:.4f})"
+    if protocol.stop_at_contact and record.get("self_intersecting"):
+        return f"self-intersection at step {k} {at}"
+    if k >= len(protocol.schedule):
+        return f"end of the schedule {at}"
+    return None

@@ -32,8 +32,14 @@ def linear_schedule(dv: float = PAPER_DV, until: float = 0.95, start: float = 0.
         direction = "larger" if dv > 0 else "smaller"
         raise ValueError(f"until = {until!r} must be {direction} than the start dV/V = {start!r} "
                          f"for dv = {dv!r}")
-    n = int(math.floor((until - start) / dv + 1e-9))
+    n = steps_between(start, until, dv)
     return check_schedule(start + dv * np.arange(1, n + 1))
+
+
+def steps_between(start: float, until: float, dv: float) -> int:
+    """The number of whole steps ``dv`` from ``start`` towards ``until`` (the targets of
+    :func:`linear_schedule`); 0 when ``until`` is less than one step away."""
+    return max(0, int(math.floor((until - start) / dv + 1e-9)))
 
 
 def geometric_schedule(start: float, end: float, increments: int) -> np.ndarray:

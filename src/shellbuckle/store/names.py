@@ -28,7 +28,7 @@ def store_file(path) -> tuple[Path, str, str] | None:
     folder, the store's entry on the way to ``path`` and ``"run"`` or ``"sweep"``; None for a
     path a command may write. The folder is recognized by its description (``run.json``,
     ``sweep.json``)."""
-    path = Path(path).absolute()
+    path = Path(path).resolve()  # through symbolic links and ".."
     for depth, folder in enumerate(path.parents):
         if depth > 1:
             return None
@@ -38,3 +38,23 @@ def store_file(path) -> tuple[Path, str, str] | None:
         if (folder / SWEEP_JSON).exists() and entry in SWEEP_FILES:
             return folder, entry, "sweep"
     return None
+
+
+def refuse_store_file(path, also=(), *, option: str | None = None) -> None:
+    """ValueError if ``path``, or a file written beside it (``also``), is a file of a run or
+    sweep folder's store or lies inside its ``steps/`` or ``logs/`` (:func:`store_file`);
+    ``option``: the command-line option that gave ``path``, which heads the message."""
+    path = Path(path)
+    for target in (path, *also):
+        found = store_file(target)
+        if found is None:
+            continue
+        folder, entry, kind = found
+        beside = "" if Path(target) == path else f" (it writes {Path(target).name} beside it)"
+        if Path(target).resolve().name == entry:
+            what = f"{entry} belongs to the {kind} in {folder}"
+        else:
+            what = f"{Path(target).name} would be inside {entry}/ of the {kind} in {folder}"
+        head = f"{option} {path}" if option else f"{str(path)!r}"
+        raise ValueError(f"{head}: {what}{beside}, which only the {kind}'s store writes; "
+                         "write elsewhere")

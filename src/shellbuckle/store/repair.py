@@ -25,7 +25,7 @@ from .folder import check_run_folder
 from .layout import (DESCRIPTION_ATTR, FORMAT_NAME, FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS,
                      REQUIRED_MESH_FIELDS, RUN_JSON, STEPS_DIR, _has_step_files, _ranges,
                      _read_h5, _read_mesh_arrays, check_format, step_file)
-from .steps import array_sha256
+from .steps import mesh_sha256
 
 #: The run store's logger: its messages keep the name they are shown with
 #: (``shellbuckle.store.run``), whichever module of the store writes them.
@@ -140,7 +140,7 @@ def _rebuilt_meta(path: Path) -> dict:
                          f"({exc}); restore {RUN_JSON} from a backup") from None
     _check_fields(meta, path)
     X0, faces, rest = _read_h5(path / MESH_H5, _read_mesh_arrays)
-    if array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items())) \
+    if mesh_sha256(X0, faces, rest) \
             != meta["mesh"]["sha256"]:
         raise ValueError(f"{path / MESH_H5} does not match the SHA-256 of its own description: "
                          f"the mesh is damaged and {RUN_JSON} is missing; restore them from a "

@@ -115,7 +115,8 @@ from .repair import (_check_fields, _how_to_replace_run_json, _read_meta,  # noq
                      set_aside_step)
 from .steps import (_HDF5_SIGNATURE, _WARNED, DamagedStep, _attribute_value,  # noqa: F401
                     _check_arrays, _check_name, _signature, _text_attribute, array_sha256,
-                    damage_summary, read_step_file, step_checksums, step_file_bytes)
+                    damage_summary, mesh_sha256, read_step_file, step_checksums,
+                    step_file_bytes)
 from .table import _csv_cell, _integer_like, table_columns, table_csv, table_frame  # noqa: F401
 
 if TYPE_CHECKING:  # pandas is imported when a table is asked for
@@ -211,7 +212,7 @@ class RunStore:
             "run_id": uuid.uuid4().hex, "created": now(),
             "params": _json_dict(params, "params"), "protocol": _json_dict(protocol, "protocol"),
             "mesh": {"n_vertices": len(X0), "n_faces": len(faces), "rest_arrays": sorted(rest),
-                     "sha256": array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items()))},
+                     "sha256": mesh_sha256(X0, faces, rest)},
             "parent": parent, "versions": _versions(),
             "platform": {"system": platform.system(), "release": platform.release(),
                          "machine": platform.machine(), "python": platform.python_implementation()},
@@ -251,6 +252,7 @@ class RunStore:
             raise ValueError(f"{path} holds a different run ({shown}); choose another folder "
                              f"with --out, or continue the stored run with `shellbuckle "
                              f"resume {path}`")
+        store.check_mesh()  # readable and this run's, before anything is written
         store._start_session()
         return store
 
@@ -401,7 +403,7 @@ class RunStore:
         (ValueError: the mesh file is damaged, or run.json is another run's)."""
         if self._mesh_cache is None:
             X0, faces, rest = _read_h5(self._path / MESH_H5, _read_mesh_arrays)
-            if array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items())) \
+            if mesh_sha256(X0, faces, rest) \
                     != self._meta["mesh"]["sha256"]:
                 raise ValueError(
                     f"{self._path / MESH_H5} does not match the mesh {RUN_JSON} describes "

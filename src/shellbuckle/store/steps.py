@@ -41,6 +41,12 @@ def array_sha256(*named_arrays) -> str:
     return h.hexdigest()
 
 
+def mesh_sha256(X0, faces, rest: Mapping) -> str:
+    """The SHA-256 of a run's mesh (``run.json``'s ``mesh.sha256``): the reference positions,
+    the faces and the rest-state arrays by name (:func:`array_sha256`)."""
+    return array_sha256(("X0", X0), ("faces", faces), *sorted(rest.items()))
+
+
 def step_checksums(X, record_json: str, arrays: Mapping | None = None) -> dict[str, str]:
     """The checksums a step file stores in its attribute ``sha256`` (as JSON): the positions
     ``"X"`` and each extra array ``"arrays/<name>"`` by :func:`array_sha256`, the record by
