@@ -55,6 +55,9 @@ CASES = [
     (["deflate", "--mesh", "{blankvtk}", "--out", "{tmp}/r"], "--mesh", "blank.vtk"),
     # a path shorter than its step; --then-out checked before the path in gamma runs
     (["continue", "{run}", "--until", "0.06", "--out", "{tmp}/r"], "--until", "0.06"),
+    (["continue", "{run}", "--until", "0.2", "--out", "{run}"], "--out", "run"),
+    (["deflate", "--icosphere", "3", "--out", ""], "--out", "''"),
+    (["export", "{run}", "--step", "-1", "--format", "vtk", "--out", " "], "--out", "' '"),
     (["continue", "{run}", "--gamma", "300", "--increments", "1", "--then-deflate-to", "0.06",
       "--out", "{tmp}/r"], "--then-deflate-to", "0.06"),
     (["continue", "{run}", "--gamma", "300", "--increments", "1", "--then-deflate-to", "0.1",

@@ -510,6 +510,8 @@ def output_file(option: str, path, suffixes=(), *, beside=()) -> Path:
     a step, the catalogue: :func:`~shellbuckle.store.names.store_file`). ``beside``: the
     suffixes of files the writer also makes next to it (an XDMF file's ``.h5``), checked as
     well."""
+    if not str(path).strip():
+        raise ValueError(f"{option} {str(path)!r}: an empty name; give a file name")
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a folder; expected a file name")
@@ -527,6 +529,8 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
     folder, never a folder of a run or sweep folder's store (its ``steps/``, ``logs/``).
     ``run``: a run folder, which may be a previous run there (it is resumed or refused by the
     run's own rules)."""
+    if not str(path).strip():
+        raise ValueError(f"{option} {str(path)!r}: an empty name; give a folder")
     path = Path(path)
     refuse_store_file(path, option=option)
     if path.exists():

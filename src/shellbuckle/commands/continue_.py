@@ -95,6 +95,9 @@ def continue_run(args) -> int:
     elif args.compare_step is not None:
         raise ValueError(f"--compare-step {args.compare_step}: goes with --compare RUN")
     output_folder("--out", args.out, run=True)
+    if Path(args.out).resolve() == Path(parent.path).resolve():
+        raise ValueError(f"--out {args.out}: is the run the path starts from; the path is a "
+                         "new run in its own folder")
     if args.gamma is None and args.c0 is None:
         last = _volume_path(parent, step, args, options)
         report_run(last, plot=not args.no_plot)
