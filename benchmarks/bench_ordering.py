@@ -24,7 +24,6 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
@@ -36,15 +35,7 @@ from shellbuckle.energies.stretching import Stretching  # noqa: E402
 from shellbuckle.mesh.mesh import Mesh  # noqa: E402
 from shellbuckle.mesh.random_sphere import random_sphere  # noqa: E402
 
-
-def _best_ms(fn, repeats: int) -> float:
-    fn()  # warm-up (and the first call's compilation)
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return 1e3 * best
+from bench_energies import _best_ms  # noqa: E402  (run as benchmarks/bench_ordering.py)
 
 
 def _renumbered(X: np.ndarray, faces: np.ndarray):
