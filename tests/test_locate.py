@@ -553,3 +553,27 @@ def test_the_printed_line_says_where_the_old_branch_ends():
                                "failure": "the step to dV/V = 0.026700 ... left"})
     assert failed.startswith(" (the old branch without jiggle reached 0.0172; the step")
     assert _old_branch_text(None) == ""
+
+
+def test_a_stored_point_is_located_again_only_for_its_own_unconverged_evaluations():
+    """A bracket end that is the run's own stored step (never moved by an evaluation) is the
+    run's, converged or not: such a point is kept. An unconverged evaluation inside the
+    bisection, or ending a complete one, or a walk step that went on from one, is not."""
+    from shellbuckle.locate import _ends_converged, ended_by
+
+    run_end = {"old": {"converged": True}, "new": {"converged": False}, "complete": False,
+               "evaluations": [{"converged": False}], "old_branch": None}
+    assert _ends_converged(run_end)
+    inside = dict(run_end, evaluations=[{"converged": False}, {"converged": True}])
+    assert not _ends_converged(inside)
+    completed = dict(run_end, complete=True)
+    assert not _ends_converged(completed)
+    walk = [{"dV_over_V": 0.1, "converged": False, "ends": False}]
+    assert not _ends_converged(dict(run_end, old_branch={"evaluations": walk}))
+    # what ended a walk stored before it was recorded: read from its step at end_hi
+    older = {"end_hi": 0.2, "evaluations": [{"dV_over_V": 0.2, "converged": False,
+                                              "ends": True}]}
+    assert ended_by(older) == "no minimum"
+    assert ended_by(dict(older, evaluations=[dict(older["evaluations"][0], converged=True)])) \
+        == "jump"
+    assert ended_by({"end_hi": None}) is None

@@ -78,18 +78,18 @@ def _sigterm_interrupts():
 
 
 class _Plain(logging.Formatter):
-    """A log record as one line of the command line: ``shellbuckle CMD: warning: ...``, and
-    for an error the command goes on after (one run of a study failed) ``shellbuckle CMD:
-    failed: ...``; a traceback is left to ``-v``."""
+    """A log record as one line of the command line: ``shellbuckle CMD: warning: ...`` (an
+    error the command goes on after, such as one failed figure of a study, is a warning too:
+    ``failed:`` is the last line of a command that failed); a traceback is left to ``-v``."""
 
     def __init__(self, command):
         super().__init__()
         self.head = f"shellbuckle {command}" if command else "shellbuckle"
 
     def format(self, record) -> str:
-        kind = "failed" if record.levelno >= logging.ERROR else record.levelname.lower()
+        kind = "warning" if record.levelno >= logging.WARNING else record.levelname.lower()
         more = " (-v shows the traceback)" if record.exc_info else ""
-        return f"{self.head}: {kind}: {record.getMessage()}{more}"
+        return f"{self.head}: {kind}: {' '.join(record.getMessage().split())}{more}"
 
 
 def main(argv=None) -> int:

@@ -215,13 +215,29 @@ class StepFromStored:
 
 
 def _ends_converged(point: dict) -> bool:
-    """Whether a stored point's bracket ends (its old and new sides) and its old branch's walk
-    rest on converged minimizations (a location made before unconverged evaluations ended a
-    bisection or the walk may not; it is located again)."""
-    if any(not (point.get(side) or {}).get("converged", True) for side in ("old", "new")):
+    """Whether a stored point's brackets rest on converged minimizations wherever they come
+    from an evaluation (a location made before unconverged evaluations stopped the bisection
+    and ended the old branch's walk may not; it is located again). The run's own stored steps,
+    the bracket's ends until an evaluation moves them, are the run's and not judged here."""
+    bisection = point.get("evaluations") or []
+    if any(not e.get("converged", True) for e in bisection[:-1]) or (
+            bisection and not bisection[-1].get("converged", True) and point.get("complete")):
         return False
     walk = (point.get("old_branch") or {}).get("evaluations") or []
     return all(e.get("ends") or e.get("converged", True) for e in walk)
+
+
+def ended_by(branch: dict | None) -> str | None:
+    """What ended an old branch's walk (``"jump"`` or ``"no minimum"``, :func:`_old_branch`),
+    also for a point stored before the walk recorded it (from its evaluation at ``end_hi``);
+    None where no end was bracketed."""
+    if not branch or branch.get("end_hi") is None:
+        return None
+    if branch.get("ended_by"):
+        return branch["ended_by"]
+    at_end = [e for e in branch.get("evaluations") or []
+              if e.get("dV_over_V") == branch["end_hi"] and e.get("ends")]
+    return "no minimum" if at_end and not at_end[-1].get("converged", True) else "jump"
 
 
 def located(run_or_path) -> dict[str, dict]:
@@ -404,11 +420,10 @@ def _old_branch(step_to: StepFromStored, wanted, run: Run, start, lo: float, hi:
         else:
             X, record, last = state.X, rec, mid
     anticipation = 1.0 - located_at / (0.5 * (last + end))
-    at_end = [e for e in walk if e["dV_over_V"] == end and e["ends"]]
-    ended_by = "no minimum" if at_end and not at_end[-1]["converged"] else "jump"
-    return found(end_lo=last, end_hi=end, anticipation=anticipation, ended_by=ended_by,
-                 **failed,
-                 mechanism="instability" if anticipation <= ANTICIPATION else "barrier crossing")
+    branch = found(end_lo=last, end_hi=end, anticipation=anticipation, **failed,
+                   mechanism="instability" if anticipation <= ANTICIPATION
+                   else "barrier crossing")
+    return branch | {"ended_by": ended_by(branch)}
 
 
 def _eigenvalue_zero(v_start: float, lowest_start: float, v_old: float,

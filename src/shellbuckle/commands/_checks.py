@@ -573,10 +573,11 @@ def scheduler_address(option: str, text) -> None:
             from None
 
 
-def run_folder(option: str, path):
+def run_folder(option: str, path, *, mesh: bool = True):
     """The :class:`~shellbuckle.run.Run` in ``path``, its ``mesh.h5`` the one its ``run.json``
-    describes; ``ValueError`` naming the option (a path that is missing or a file is refused
-    before the run store is loaded)."""
+    describes (unless ``mesh`` is False: a command that reads only the table, which salvages
+    a run whose mesh is lost); ``ValueError`` naming the option (a path that is missing or a
+    file is refused before the run store is loaded)."""
     from ..store.folder import check_run_folder
 
     try:
@@ -584,7 +585,8 @@ def run_folder(option: str, path):
         from ..run import Run
 
         run = Run.open(path)
-        run.store.check_mesh()
+        if mesh:
+            run.store.check_mesh()
         return run
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)

@@ -54,7 +54,9 @@ def _old_branch_text(branch: dict | None) -> str:
         return ""
     if branch.get("end_hi") is not None:
         share = 100 * branch["anticipation"]
-        how = " where no minimum is found" if branch.get("ended_by") == "no minimum" else ""
+        from ..locate import ended_by
+
+        how = " where no minimum is found" if ended_by(branch) == "no minimum" else ""
         parts = [f"ends at {0.5 * (branch['end_lo'] + branch['end_hi']):.4f}{how}",
                  f"the located point is {share:.0f} % of that volume short of it" if share >= 0
                  else f"{-share:.0f} % before the located point"]

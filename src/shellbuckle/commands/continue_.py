@@ -176,6 +176,8 @@ def _parameter_path(parent, step: int, args, options: dict):
         raise ValueError("--increments goes with a target value, not with a list of values")
     then_out = None
     if args.then_deflate_to is not None:
+        if args.then_out is not None and not args.then_out.strip():
+            raise ValueError(f"--then-out {args.then_out!r}: an empty name; give a folder")
         then_out = Path(args.then_out) if args.then_out else Path(f"{Path(args.out)}_deflated")
         output_folder("--then-out", then_out, run=True)
         _then_out_free(then_out, Path(args.out), typed(args, "--then-out", then_out))

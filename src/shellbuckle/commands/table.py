@@ -52,7 +52,7 @@ def register(sub) -> None:
 
 
 def _cmd(args) -> int:
-    run = run_folder("DIR", args.dir)
+    run = run_folder("DIR", args.dir, mesh=False)  # the table only: also of a lost mesh
     store = run.store
     from ..store.table import table_in_units
 

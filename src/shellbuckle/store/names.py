@@ -7,6 +7,7 @@ before it loads anything.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
@@ -28,7 +29,7 @@ def store_file(path) -> tuple[Path, str, str] | None:
     folder, the store's entry on the way to ``path`` and ``"run"`` or ``"sweep"``; None for a
     path a command may write. The folder is recognized by its description (``run.json``,
     ``sweep.json``)."""
-    path = Path(path).resolve()  # through symbolic links and ".."
+    path = Path(os.path.realpath(path))  # through symbolic links and ".." (a loop: as is)
     for depth, folder in enumerate(path.parents):
         if depth > 1:
             return None
@@ -51,7 +52,7 @@ def refuse_store_file(path, also=(), *, option: str | None = None) -> None:
             continue
         folder, entry, kind = found
         beside = "" if Path(target) == path else f" (it writes {Path(target).name} beside it)"
-        if Path(target).resolve().name == entry:
+        if Path(os.path.realpath(target)).name == entry:
             what = f"{entry} belongs to the {kind} in {folder}"
         else:
             what = f"{Path(target).name} would be inside {entry}/ of the {kind} in {folder}"
