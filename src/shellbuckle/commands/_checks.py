@@ -548,7 +548,7 @@ def sweep_folder(option: str, path, spec, *, what: str = "a sweep") -> Path:
     or a sweep to resume or extend; never a run folder, a non-empty folder that is no sweep, or
     a sweep whose record has a run of ``spec``'s names with other parameters. ``what`` names the
     sweep in the refusal of a run folder. Checked before any work, writing nothing."""
-    from ..store.run import RUN_JSON
+    from ..store.names import RUN_JSON
     from ..sweep import check_sweep
 
     folder = output_folder(option, path)

@@ -209,9 +209,8 @@ def _then_out_free(then_out: Path, out: Path, text) -> None:
     """``--then-out``: not the path's own folder, and a run there only the second part of this
     same command (a branch of the run in ``out``, resumed), checked before the first part
     runs."""
-    import json
-
     from ..store.names import RUN_JSON
+    from ..store.run import RunStore
 
     if then_out.resolve() == out.resolve():
         raise ValueError(f"--then-out {text}: is the --out folder of the path; the deflation "
@@ -219,9 +218,8 @@ def _then_out_free(then_out: Path, out: Path, text) -> None:
     if not (then_out / RUN_JSON).is_file():
         return
     try:
-        parent = (json.loads((then_out / RUN_JSON).read_text(encoding="utf-8"))
-                  .get("parent") or {}).get("path")
-    except (ValueError, OSError, AttributeError):
+        parent = (RunStore.open(then_out).parent or {}).get("path")
+    except (ValueError, OSError, AttributeError):  # damaged: another run in any case
         parent = None
     if parent is None or Path(parent).resolve() != out.resolve():
         raise ValueError(f"--then-out {text}: holds another run (not the deflation after the "

@@ -403,8 +403,7 @@ class RunStore:
         (ValueError: the mesh file is damaged, or run.json is another run's)."""
         if self._mesh_cache is None:
             X0, faces, rest = _read_h5(self._path / MESH_H5, _read_mesh_arrays)
-            if mesh_sha256(X0, faces, rest) \
-                    != self._meta["mesh"]["sha256"]:
+            if mesh_sha256(X0, faces, rest) != self._meta["mesh"]["sha256"]:
                 raise ValueError(
                     f"{self._path / MESH_H5} does not match the mesh {RUN_JSON} describes "
                     f"(SHA-256): the mesh file was changed or damaged, or {RUN_JSON} is "
