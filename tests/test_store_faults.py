@@ -88,6 +88,12 @@ def _remove(path):
     path.unlink()
 
 
+def _of_another_run(path):
+    # the file as another run on the same mesh writes it: only the run it names differs
+    with h5py.File(path, "a") as f:
+        f.attrs["run_id"] = "0123456789abcdef" * 2
+
+
 STEP_FAULTS = {
     "truncated": (_truncate, r"cannot be read as HDF5, truncated or overwritten"),
     "empty": (_empty, r"is empty \(0 bytes\)"),
@@ -95,6 +101,8 @@ STEP_FAULTS = {
     "corrupted positions": (_flip_positions, r"checksum mismatch in the positions X"),
     "broken record": (_break_record, r"record \(attribute record_json\) is not valid JSON"),
     "missing file": (_remove, r"is missing although later steps exist"),
+    "another run's step": (_of_another_run, r"is a step of another run \(run id "
+                           r"0123456789ab\.\.\., this run's is [0-9a-f]{12}\.\.\.\)"),
 }
 
 
@@ -195,6 +203,43 @@ def test_a_step_file_without_checksums_reads_unchecked(folder, reference, caplog
         assert run.positions(MIDDLE).tobytes() == reference[2][MIDDLE].tobytes()
     assert {r.levelno for r in caplog.records if "no checksums" in r.getMessage()} == \
         {logging.DEBUG}
+
+
+@pytest.fixture(scope="module")
+def same_mesh_other_gamma(tmp_path_factory):
+    """A run on the reference's mesh with its options but another gamma: its step files and
+    its run.json fit the reference folder by shape and mesh, and are another shell's."""
+    run = deflate(icosphere(4), ShellParameters.from_gamma(400.0, nu=1 / 3),
+                  out=tmp_path_factory.mktemp("other") / "run", **OPTIONS)
+    assert run.status == "finished" and run.steps == list(range(LAST + 1))
+    return run.path
+
+
+def test_a_step_copied_from_a_run_on_the_same_mesh_is_not_read_as_this_runs(
+        folder, reference, same_mesh_other_gamma):
+    """The copied file is whole and of the right shape, so only the run id it carries tells:
+    it is named, left out, and a resume computes this run's own step again."""
+    _, table, positions = reference
+    copied = same_mesh_other_gamma / "steps" / f"step_{LAST:06d}.h5"
+    assert RunStore.open(same_mesh_other_gamma).positions(LAST).tobytes() != \
+        positions[LAST].tobytes()
+    shutil.copyfile(copied, _step(folder, LAST))
+    run = Run.open(folder)
+    assert run.steps == list(range(LAST)) and "is a step of another run" in run.damaged[LAST]
+    done = resume(folder)
+    assert done.damaged == {}
+    _same_rows(done.table, table, ignore=("wall_s",))
+    assert done.positions(LAST).tobytes() == positions[LAST].tobytes()
+
+
+def test_a_step_file_that_names_no_run_is_read_as_before(folder, reference):
+    # files written before step files named their run
+    for k in range(LAST + 1):
+        with h5py.File(_step(folder, k), "a") as f:
+            del f.attrs["run_id"]
+    run = Run.open(folder)
+    assert run.damaged == {} and run.steps == list(range(LAST + 1))
+    assert run.positions(LAST).tobytes() == reference[2][LAST].tobytes()
 
 
 # ----------------------------------------------------------------------------- run.json faults
@@ -376,6 +421,27 @@ def test_resume_refuses_a_run_it_cannot_read_before_writing_anything(folder, tmp
     assert len(err.strip().splitlines()) == 1
     after = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
     assert after == before
+
+
+def test_a_run_json_of_another_run_on_the_same_mesh_is_refused(folder, tmp_path,
+                                                               same_mesh_other_gamma):
+    """Its mesh SHA-256 is this folder's, so only the run id of the copy in mesh.h5 tells it
+    is another shell's: resume refuses it before writing anything (it would have computed
+    the damaged-looking steps again with the other gamma), and so do the readers."""
+    shutil.copyfile(same_mesh_other_gamma / "run.json", folder / "run.json")
+    before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    for argv in (["resume", str(folder), "--quiet", "--no-plot", "--no-locate"],
+                 ["export", str(folder), "--step", "-1", "--format", "vtk", "--out",
+                  str(tmp_path / "x.vtk")]):
+        code, _, err = _cli(argv)
+        assert code == 2 and "Traceback" not in err, err
+        assert "run.json is another run's" in err and "mixes two runs" in err, err
+        assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.vtk").exists()
+    assert {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
+            if p.is_file()} == before
+    (folder / "run.json").rename(folder / "run.json.bad")  # what the message says to do
+    assert Run.open(folder).params.gamma == pytest.approx(271.0)
 
 
 def test_a_changed_reference_mesh_is_refused_by_every_reader(folder, tmp_path):

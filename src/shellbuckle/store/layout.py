@@ -35,6 +35,8 @@ _INTEGER_COLUMNS = {"step", "iterations", "inertia", "n_dimples", "corners", "W"
 #: Attribute of a step file holding the checksums of its content (JSON), and of mesh.h5
 #: holding a copy of run.json as created.
 CHECKSUM_ATTR, DESCRIPTION_ATTR = "sha256", "run_json"
+#: The attribute of a step file naming the run it was written for (its run id).
+RUN_ID_ATTR = "run_id"
 #: Fields every run.json has (all written since format version 1), and those of its "mesh".
 REQUIRED_FIELDS = {"run_id": str, "params": dict, "protocol": dict, "mesh": dict,
                    "status": str, "sessions": list}

@@ -20,7 +20,8 @@ Layout of a run folder ``DIR`` (format ``shellbuckle-run``, version 1)::
                               extra arrays; attribute sha256, the checksums of its content as
                               JSON: {"X": array_sha256(("X", X)), "record_json": SHA-256 of
                               the attribute's UTF-8 bytes, "arrays/<name>":
-                              array_sha256((name, array))}
+                              array_sha256((name, array))}; attribute run_id, the run it
+                              was written for
     DIR/steps/step_000123.h5.damaged-1
                               a damaged last step set aside by a resume (never deleted)
     DIR/analysis.json         analysis columns per step (shape, n_dimples, corners, W, ...)
@@ -39,8 +40,8 @@ Guarantees and how they are kept:
 - *A damaged step is named, never read as good.* A step file can still be damaged after it was
   written (a disk fault, a copy cut short, a hand edit): empty, truncated, junk, a broken
   record, positions whose bytes changed. Every step file is checked when it is read — it opens
-  as HDF5, its record parses and names its step, its positions have the run's shape and its
-  content matches its checksums (step files written before the checksums were introduced are
+  as HDF5, its record parses and names its step, its positions have the run's shape, it names this
+  run and its content matches its checksums (step files written before the checksums were introduced are
   read unchecked) — and a damaged one is left out of :attr:`RunStore.steps` and the table and
   listed with what is wrong in :attr:`RunStore.damaged`; the good steps stay readable. Resuming
   sets damaged last steps aside (``step_....h5.damaged-<n>``) and computes them again; a
@@ -104,7 +105,8 @@ from .atomic import (FileLock, atomic_write_bytes, fsync_folder, locked_update,
 # modules and the tests use
 from .layout import (_INTEGER_COLUMNS, _WRITER_FILES, ANALYSIS_COLUMNS,  # noqa: F401
                      ANALYSIS_JSON, ANALYSIS_LOCK, CHECKSUM_ATTR, DESCRIPTION_ATTR, FORMAT_NAME,
-                     FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS, REQUIRED_MESH_FIELDS, RUN_JSON,
+                     FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS, REQUIRED_MESH_FIELDS, RUN_ID_ATTR,
+                     RUN_JSON,
                      STATUSES, STEPS_DIR, TABLE_COLUMNS, TABLE_CSV, WRITER_LOCK, _h5_bytes,
                      _has_step_files, _ranges, _read_h5, _read_mesh_arrays, _span, _step_indices,
                      check_format, step_file, write_array)
@@ -142,6 +144,19 @@ def _check_mesh(X0, faces, rest):
         _check_name(name, "rest")
         rest[name] = np.ascontiguousarray(rest[name])
     return X0, faces, rest
+
+
+def _read_mesh_and_owner(f) -> tuple:
+    """The mesh arrays of an open mesh.h5 and the run id of the copy of run.json it holds
+    (None if it holds no readable copy)."""
+    text = f.attrs.get(DESCRIPTION_ATTR)
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "replace")
+    try:
+        owner = json.loads(text).get("run_id") if isinstance(text, str) else None
+    except (json.JSONDecodeError, AttributeError):
+        owner = None
+    return (*_read_mesh_arrays(f), owner if isinstance(owner, str) else None)
 
 
 def _interrupted_creation(path: Path) -> bool:
@@ -400,15 +415,23 @@ class RunStore:
 
     def _mesh(self):
         """The mesh arrays of mesh.h5, read once, checked against run.json's SHA-256 of them
-        (ValueError: the mesh file is damaged, or run.json is another run's)."""
+        and against the run id of the copy of run.json it holds (ValueError: the mesh file is
+        damaged, or run.json is another run's)."""
         if self._mesh_cache is None:
-            X0, faces, rest = _read_h5(self._path / MESH_H5, _read_mesh_arrays)
+            X0, faces, rest, owner = _read_h5(self._path / MESH_H5, _read_mesh_and_owner)
             if mesh_sha256(X0, faces, rest) != self._meta["mesh"]["sha256"]:
                 raise ValueError(
                     f"{self._path / MESH_H5} does not match the mesh {RUN_JSON} describes "
                     f"(SHA-256): the mesh file was changed or damaged, or {RUN_JSON} is "
                     f"another run's; restore the folder from a backup (a {RUN_JSON} removed "
                     f"is rebuilt from the copy in {MESH_H5})")
+            if owner is not None and owner != self.run_id:
+                raise ValueError(
+                    f"{self._path / RUN_JSON} is another run's (run id {self.run_id[:12]}...) "
+                    f"than {MESH_H5} (written for run {owner[:12]}...): the folder mixes two "
+                    f"runs; restore {RUN_JSON} from a backup, or move it aside (`mv "
+                    f"{self._path / RUN_JSON} {self._path / RUN_JSON}.bad`) and the run opens "
+                    f"from the copy in {MESH_H5}")
             self._mesh_cache = X0, faces, rest
         return self._mesh_cache
 
@@ -496,7 +519,7 @@ class RunStore:
         except FileNotFoundError:
             signature = None
         try:
-            record = read_step_file(path, k, self.n_vertices)[0]
+            record = read_step_file(path, k, self.n_vertices, run_id=self.run_id)[0]
             entry = (signature, record, None)
         except DamagedStep as exc:
             entry = (signature, None, str(exc))
@@ -551,7 +574,8 @@ class RunStore:
         k = operator.index(k)
         try:
             signature = _signature(path)
-            _, X, arrays, _ = read_step_file(path, k, self.n_vertices, parts=parts)
+            _, X, arrays, _ = read_step_file(path, k, self.n_vertices, parts=parts,
+                                             run_id=self.run_id)
         except FileNotFoundError:
             self._not_readable(k)
         except DamagedStep as exc:
@@ -616,7 +640,7 @@ class RunStore:
             raise ValueError(f"positions of step {k} must be a finite ({self.n_vertices}, 3) "
                              f"array, got shape {X.shape}")
         record = _scalar_dict(record, f"record of step {k}",
-                              reserved=("record_json", CHECKSUM_ATTR))
+                              reserved=("record_json", CHECKSUM_ATTR, RUN_ID_ATTR))
         if record.setdefault("step", k) != k:
             raise ValueError(f"record of step {k} says step {record['step']!r}")
         record = {"step": k, **{key: v for key, v in record.items() if key != "step"}}
@@ -624,7 +648,7 @@ class RunStore:
         record_json = json.dumps(record)
         self._take_writer_lock()
         path = self._step_path(k)
-        atomic_write_bytes(path, step_file_bytes(X, record, record_json, arrays))
+        atomic_write_bytes(path, step_file_bytes(X, record, record_json, arrays, self.run_id))
         # what record() would read back from the file just written
         self._step_cache[k] = (_signature(path), json.loads(record_json), None)
         self._write_table()

@@ -3,10 +3,10 @@ it is read.
 
 A step file holds the positions ``X (V, 3)`` float64, the step record as attributes (one per
 column, and all of it as JSON in ``record_json``), optional extra arrays in the group
-``arrays/``, and in the attribute ``sha256`` the SHA-256 checksums of that content
-(:func:`step_checksums`). :func:`read_step_file` verifies a file (HDF5 signature and
-structure, the record naming its step, the positions' shape, dtype and finiteness, the
-checksums) and raises :class:`DamagedStep` saying what is wrong; :func:`damage_summary` puts
+``arrays/``, in the attribute ``sha256`` the SHA-256 checksums of that content
+(:func:`step_checksums`) and in the attribute ``run_id`` the id of the run it was written for.
+:func:`read_step_file` verifies a file (HDF5 signature and structure, the run it belongs to,
+the record naming its step, the positions' shape, dtype and finiteness, the checksums) and raises :class:`DamagedStep` saying what is wrong; :func:`damage_summary` puts
 the damaged steps of a run and what to do about them in one line.
 """
 
@@ -21,7 +21,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .layout import CHECKSUM_ATTR, _h5_bytes, _ranges, write_array
+from .layout import CHECKSUM_ATTR, RUN_ID_ATTR, _h5_bytes, _ranges, write_array
 
 #: The run store's logger: its messages keep the name they are shown with
 #: (``shellbuckle.store.run``), whichever module of the store writes them.
@@ -87,7 +87,7 @@ def _text_attribute(f, name: str):
 
 
 def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
-                   parts: str = "all"):
+                   parts: str = "all", run_id: str | None = None):
     """``(record, X, arrays, checked)`` of the step file ``path`` of step ``k``, verified:
     it opens as HDF5, its record parses as a dict naming step ``k``, ``X`` is a finite
     ``(n_vertices, 3)`` float64 array, and the content matches its checksums (``checked`` is
@@ -95,7 +95,9 @@ def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
     :class:`DamagedStep` naming the file and what is wrong otherwise.
 
     ``parts``: ``"all"``; or ``"X"`` or ``"arrays"`` to read and check only the positions or
-    only the extra arrays (the other values are then None).
+    only the extra arrays (the other values are then None). ``run_id``: the run the file must
+    belong to; a file written for another run (copied from another run's folder) is damaged.
+    A file written before step files named their run is read whatever its run.
     """
     name = f"{path.parent.name}/{path.name}"
     try:
@@ -108,6 +110,7 @@ def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
     try:
         with h5py.File(path, "r", locking=False) as f:
             sums = _text_attribute(f, CHECKSUM_ATTR)
+            owner = _text_attribute(f, RUN_ID_ATTR)
             if parts == "all":
                 text = _text_attribute(f, "record_json")
             if parts in ("all", "X"):
@@ -127,6 +130,10 @@ def read_step_file(path: Path, k: int, n_vertices: int | None = None, *,
                               f"{head!r})") from None
         raise DamagedStep(f"{name} cannot be read as HDF5, truncated or overwritten "
                           f"({size} bytes; {exc})") from None
+    if run_id is not None and owner is not None and owner != run_id:
+        raise DamagedStep(f"{name} is a step of another run (run id {str(owner)[:12]}..., this "
+                          f"run's is {run_id[:12]}...): it was copied from another run's "
+                          "folder")
     record = None
     if parts == "all":
         if not isinstance(text, str):
@@ -187,10 +194,11 @@ def _attribute_value(value):
 
 
 def step_file_bytes(X: np.ndarray, record: dict, record_json: str,
-                    arrays: Mapping[str, np.ndarray]) -> bytes:
+                    arrays: Mapping[str, np.ndarray], run_id: str | None = None) -> bytes:
     """The bytes of the step file holding positions ``X``, the step ``record`` (one attribute
     per non-None value, and all of it as ``record_json``), the extra ``arrays`` in the group
-    ``arrays/`` and the checksums of all of it (:func:`step_checksums`)."""
+    ``arrays/``, the checksums of all of it (:func:`step_checksums`) and, if given, the id of
+    the run it belongs to (attribute ``run_id``)."""
 
     def write(f):
         write_array(f, "X", X)
@@ -203,6 +211,8 @@ def step_file_bytes(X: np.ndarray, record: dict, record_json: str,
             for name, arr in arrays.items():
                 write_array(group, name, arr)
         f.attrs[CHECKSUM_ATTR] = json.dumps(step_checksums(X, record_json, arrays))
+        if run_id is not None:
+            f.attrs[RUN_ID_ATTR] = run_id
 
     return _h5_bytes(write)
 
