@@ -328,6 +328,7 @@ CASES = [
     (["plot", "--pair", "{run}", "{tmp}/nothing", "--out", "{tmp}/f"], "--pair", "nothing"),
     (["plot", "{run}", "--reference", "{empty}", "--out", "{tmp}/f"], "--reference", "empty"),
     (["report", "{tmp}/nothing", "--out", "{tmp}/r.md"], "DIR", "nothing"),
+    (["report", "{full}", "--out", "{tmp}/r.md"], "DIR", "full"),
     (["report", "{run}", "--out", "{tmp}/missing/dir/r.md"], "--out", "missing/dir/r.md"),
     (["report", "{run}", "--out", "{empty}"], "--out", "empty"),
     (["report", "{run}", "--out", "{ro}/r.md"], "--out", "ro/r.md"),

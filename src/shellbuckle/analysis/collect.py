@@ -77,9 +77,10 @@ def _missing_runs(path: Path, missing: list[str], total: int) -> None:
                  "before starting); skipped", path, len(missing) - len(lost), total)
 
 
-def _run_folders(path: Path) -> list[Path]:
+def _run_folders(path: Path, warn: bool = True) -> list[Path]:
     """The run folders a path stands for: itself, the runs of a sweep, or the run and sweep
-    folders directly inside it (ValueError if none)."""
+    folders directly inside it (ValueError if none). ``warn``: name the runs of a sweep that
+    have no run folder."""
     from ..store.catalogue import SWEEP_JSON, read_sweep_file
     from ..store.run import RUN_JSON
 
@@ -93,7 +94,7 @@ def _run_folders(path: Path) -> list[Path]:
     if (path / SWEEP_JSON).exists():
         names = list(read_sweep_file(path)["runs"])
         found = [path / n for n in names if (path / n / RUN_JSON).exists()]
-        if len(found) < len(names):
+        if len(found) < len(names) and warn:
             _missing_runs(path, [n for n in names if not (path / n / RUN_JSON).exists()],
                           len(names))
         return found
@@ -102,11 +103,23 @@ def _run_folders(path: Path) -> list[Path]:
         if (sub / RUN_JSON).exists():
             found.append(sub)
         elif (sub / SWEEP_JSON).exists():
-            found += _run_folders(sub)
+            found += _run_folders(sub, warn)
     if not found:
         raise ValueError(f"{str(path)!r} is neither a run folder (no {RUN_JSON}) nor a sweep "
                          f"folder (no {SWEEP_JSON}) nor a folder of run folders")
     return found
+
+
+def check_folder(option: str, path) -> None:
+    """ValueError naming ``option`` and ``path`` unless ``path`` is a run folder, a sweep
+    folder or a folder of them (what :func:`run_folders` reads)."""
+    try:
+        _run_folders(Path(path), warn=False)
+    except ValueError as exc:
+        message = str(exc)
+        quoted = f"{str(path)!r} "
+        message = message[len(quoted):] if message.startswith(quoted) else message
+        raise ValueError(f"{option} {path}: {message}") from None
 
 
 def run_folders(paths) -> list[Path]:

@@ -573,11 +573,12 @@ def scheduler_address(option: str, text) -> None:
             from None
 
 
-def run_folder(option: str, path, *, mesh: bool = True):
+def run_folder(option: str, path, *, mesh: bool = True, params: bool = True):
     """The :class:`~shellbuckle.run.Run` in ``path``, its ``mesh.h5`` the one its ``run.json``
     describes (unless ``mesh`` is False: a command that reads only the table, which salvages
-    a run whose mesh is lost); ``ValueError`` naming the option (a path that is missing or a
-    file is refused before the run store is loaded)."""
+    a run whose mesh is lost) and its parameters readable (unless ``params`` is False: a
+    command that reads only the stored shapes); ``ValueError`` naming the option (a path that
+    is missing or a file is refused before the run store is loaded)."""
     from ..store.folder import check_run_folder
 
     try:
@@ -587,6 +588,8 @@ def run_folder(option: str, path, *, mesh: bool = True):
         run = Run.open(path)
         if mesh:
             run.store.check_mesh()
+            if params:
+                run.params  # noqa: B018 -- raises naming run.json when it cannot be read
         return run
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)

@@ -26,7 +26,7 @@ def register(sub) -> None:
 
 def _cmd(args) -> int:
     from ..analysis import analyze_run, events
-    found = run_folder("DIR", args.dir)
+    found = run_folder("DIR", args.dir, params=False)  # the stored shapes only
     if not os.access(found.path, os.W_OK):
         raise ValueError(f"DIR {args.dir}: the run folder is not writable (the analysis is "
                          "stored in it)")

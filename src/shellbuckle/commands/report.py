@@ -32,6 +32,7 @@ def register(sub) -> None:
 def _cmd(args) -> int:
     from pathlib import Path
 
+    from ..analysis.collect import check_folder
     from ..studies.quilliet2008.report import write_report
 
     fmt = args.fmt
@@ -44,6 +45,7 @@ def _cmd(args) -> int:
             raise FileNotFoundError(f"DIR {folder}: does not exist")
         if not Path(folder).is_dir():
             raise ValueError(f"DIR {folder}: is a file; expected a run or sweep folder")
+        check_folder("DIR", folder)
     if args.reference is not None:
         input_file("--reference", args.reference)
     output_file("--out", out, suffixes=(".md",) if fmt == "md" else (".html", ".htm"))
