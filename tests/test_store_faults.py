@@ -444,6 +444,22 @@ def test_a_run_json_of_another_run_on_the_same_mesh_is_refused(folder, tmp_path,
     assert Run.open(folder).params.gamma == pytest.approx(271.0)
 
 
+def test_a_mesh_found_good_is_read_once_and_checked_again_when_it_changes(folder, tmp_path,
+                                                                        monkeypatch):
+    from shellbuckle.store import run as store_run
+
+    RunStore.open(folder).check_mesh()
+    reads = []
+    real = store_run._read_h5
+    monkeypatch.setattr(store_run, "_read_h5", lambda *a: reads.append(a) or real(*a))
+    RunStore.open(folder).check_mesh()  # another store of the same folder, the file as it was
+    assert reads == []
+    _changed_reference(folder, tmp_path)
+    with pytest.raises(ValueError, match="does not match the mesh run.json describes"):
+        RunStore.open(folder).check_mesh()
+    assert len(reads) == 1
+
+
 def test_a_changed_reference_mesh_is_refused_by_every_reader(folder, tmp_path):
     """A reference shape changed in place is another shell: no new run starts from it, its
     steps are not exported, drawn or located on it, and running its command again does not

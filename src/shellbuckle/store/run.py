@@ -146,6 +146,11 @@ def _check_mesh(X0, faces, rest):
     return X0, faces, rest
 
 
+#: The mesh files found to be their run's: (folder, mesh.h5's signature, the SHA-256 and run id
+#: run.json gives), for :meth:`RunStore.check_mesh`.
+_MESHES_CHECKED: set[tuple] = set()
+
+
 def _read_mesh_and_owner(f) -> tuple:
     """The mesh arrays of an open mesh.h5 and the run id of the copy of run.json it holds
     (None if it holds no readable copy)."""
@@ -437,8 +442,21 @@ class RunStore:
 
     def check_mesh(self) -> None:
         """ValueError unless mesh.h5 is readable and is the mesh run.json describes (its
-        SHA-256)."""
+        SHA-256 and run id). A verdict is kept for the process while neither file changes
+        (modification time, size, inode), so a sweep that checks its runs at the start and
+        again for its catalogue reads each mesh once."""
+        if self._mesh_cache is not None:
+            return
+        try:
+            key = (str(self._path.resolve()), _signature(self._path / MESH_H5),
+                   self._meta["mesh"]["sha256"], self.run_id)
+        except (FileNotFoundError, OSError):
+            key = None
+        if key is not None and key in _MESHES_CHECKED:
+            return
         self._mesh()
+        if key is not None:
+            _MESHES_CHECKED.add(key)
 
     @property
     def X0(self) -> np.ndarray:
