@@ -275,6 +275,19 @@ def folded_flat(X: np.ndarray, hinges: np.ndarray, tol: float = FLAT_FOLD_TOL) -
             f"is not differentiable")
 
 
+#: The absolute part of the gradient test in the units of a shell of bending modulus 1 and
+#: radius 1 (:attr:`~shellbuckle.solve.options.NewtonOptions.atol_grad`).
+ATOL_GRAD = 1e-10
+
+
+def gradient_atol(params) -> float:
+    """The absolute part of the protocol's gradient test, ``ATOL_GRAD kappa / R``: a force
+    in the shell's own units (energy over length), so that a shell given in SI units (kappa
+    of order 1e-19 J, R of 1e-8 m) stops where the same shell in reduced units does. A fixed
+    1e-10 would exceed its forces and end its minimizations after a few steps."""
+    return ATOL_GRAD * float(params.kappa) / float(params.R)
+
+
 def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, warm=None,
               certify: bool = True, relaxed_token=None, certify_single: bool = True,
               jiggle: float | None = None):
@@ -297,15 +310,19 @@ def _minimize(ctx: Context, energy, X, V_target, pressure=None, relaxed=None, wa
     dent) does not switch with the imperfection's size in mesh units
     (:mod:`shellbuckle.solve.newton`, "Smooth starts")."""
     p = ctx.protocol
+    atol = gradient_atol(ctx.params)
     if pressure is not None:
         return minimize_at_pressure(energy, ctx.volume, X, pressure, tol_grad=p.tol,
-                                    max_iter=p.max_iter, solver=ctx.workspace.solver)
-    options = {}
+                                    atol_grad=atol, max_iter=p.max_iter,
+                                    solver=ctx.workspace.solver)
+    options = {"atol_grad": atol}
+    if p.method == "alternate":
+        options["cg_options"] = {"atol_grad": atol}
     if p.method in ("newton", "alternate"):
         # one rigid gauge for the whole run (from the reference mesh): the KKT pattern, and so
         # the linear solver's symbolic analysis, stay the same from minimization to minimization
         hinges = ctx.mesh.topology.hinges
-        options = {"workspace": ctx.workspace, "pinned": ctx.pinned, "certify": certify,
+        options |= {"workspace": ctx.workspace, "pinned": ctx.pinned, "certify": certify,
                    "certify_single": certify_single,
                    "abandon": lambda X: folded_flat(X, hinges),
                    "abandon_thorough": lambda X: (folded_flat(X, hinges)
