@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 
+import meshio
 import pytest
 
 from shellbuckle.cli import build_parser, main
@@ -34,10 +35,13 @@ def places(tmp_path_factory):
     (root / "steps_link").symlink_to(run.path / "steps", target_is_directory=True)
     (root / "loop").symlink_to(root / "loop")  # a loop of symbolic links
     (root / "bad.vtu").write_text("garbage\n")
+    unit = icosphere(3)  # radius 1: not a 20 nm shell
+    meshio.write_points_cells(str(root / "unit.vtk"), unit.X, [("triangle", unit.faces)])
     yield {"run": str(run.path), "empty": str(root / "empty"), "file": str(root / "afile.txt"),
            "full": str(root / "full"), "ro": str(root / "ro"), "root": root,
            "blankvtk": str(root / "blank.vtk"), "badvtu": str(root / "bad.vtu"),
-           "link": str(root / "steps_link"), "loop": str(root / "loop")}
+           "link": str(root / "steps_link"), "loop": str(root / "loop"),
+           "unitvtk": str(root / "unit.vtk")}
     os.chmod(root / "ro", 0o755)
 
 
@@ -70,6 +74,8 @@ CASES = [
     (["continue", "{run}", "--gamma", "300", "--increments", "1", "--then-deflate-to", "0.1",
       "--then-out", "{tmp}/r", "--out", "{tmp}/r"], "--then-out", "/r"),
     (["deflate", "--mesh", "{badvtu}", "--out", "{tmp}/r"], "--mesh", "bad.vtu"),
+    (["deflate", "--mesh", "{unitvtk}", "--E", "1e8", "--sigma", "0.5", "--d", "2e-9", "--R",
+      "2e-8", "--out", "{tmp}/r"], "--mesh", "unit.vtk"),
     (["classify", "{blankvtk}"], "blank.vtk", "cannot be read as .vtk"),
     (["continue", "{run}", "--dv", "-1e-6", "--until", "0.04", "--out", "{tmp}/r"], "--dv",
      "-1e-6"),

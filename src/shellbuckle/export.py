@@ -398,10 +398,18 @@ def export_series(run, path, fmt: str | None = None, steps=None) -> Path:
                          f"format {fmt!r} (expected {SERIES_FORMATS[fmt]!r})")
     if not path.parent.is_dir():
         raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
+    h5_path = path.with_suffix(".h5")
+    for target in (path, h5_path):
+        if target.is_dir():
+            raise ValueError(f"{str(target)!r} is a folder; the series needs a file there")
+    if steps is not None and (isinstance(steps, (str, bytes)) or np.ndim(steps) != 1):
+        raise TypeError(f"steps must be a list of step numbers, got {steps!r}")
     steps = run.steps if steps is None else [run.step(k) for k in steps]
     if not steps:
         raise ValueError(f"run {str(run.path)!r} has no finished step to export")
-    h5_path = path.with_suffix(".h5")
+    if any(b <= a for a, b in zip(steps, steps[1:])):
+        raise ValueError(f"steps {steps!r} (as resolved): a time series needs each step once, "
+                         "in increasing order")
     refuse_store_file(path, [h5_path])
     fields = RunFields.of(run)
     faces = np.asarray(run.faces, dtype=np.int64)

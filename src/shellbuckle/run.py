@@ -102,7 +102,15 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
         threads = check_threads(threads)
 
     params = params or ShellParameters.from_gamma(MAIN_JOB_GAMMA, nu=1.0 / 3.0)
-    mesh = mesh or random_sphere(3594, seed=seed)
+    if not isinstance(params, ShellParameters):
+        raise TypeError(f"params must be a ShellParameters (ShellParameters.from_gamma(...) or "
+                        f".from_material(...)), got {type(params).__name__} {params!r}")
+    mesh = mesh or random_sphere(3594, seed=seed, R=params.R)
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"mesh must be a Mesh (shellbuckle.mesh.icosphere, random_sphere, "
+                        f"read_mesh or Mesh.from_arrays), got {type(mesh).__name__}")
+    check_mesh_fits(mesh, params, form_factors)
+    check_shell_options(mesh, params, c0=c0, pressures=pressures)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
                    stop_at_contact=stop_at_contact, prerelax=prerelax,
@@ -159,13 +167,18 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
 
 
 def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
-                  until: float | None = None, progress: bool = False, **options) -> Run:
+                  until: float | None = None, progress: bool = False,
+                  max_steps: int | None = None, threads: int | None = None,
+                  **options) -> Run:
     """A new run in ``out`` starting from step ``step`` of ``run`` with a new volume schedule.
 
     Give ``schedule`` (target dV/V list), or ``dv`` and ``until`` (``dv < 0`` re-inflates).
-    Other protocol options default to the parent's. The stress-free reference stays the
-    parent's initial sphere.
+    Other protocol options default to the parent's (an unknown one is a TypeError). The
+    stress-free reference stays the parent's initial sphere. ``max_steps`` and ``threads`` as
+    in :func:`deflate`.
     """
+    if threads is not None:
+        threads = check_threads(threads)
     parent = Run.of(run)
     step = parent.step(step)
     start = float(parent.store.record(step)["dV_over_V"])
@@ -183,15 +196,16 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
     def setup():
         store = parent.store.branch(out, step, params=params.to_dict(),
                                     protocol=protocol.to_dict(),
-                                    extra_meta={SOLVER_MODE: solver_mode(None)})
+                                    extra_meta={SOLVER_MODE: solver_mode(threads)})
         return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
-    return _drive(setup, progress=progress)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
 
 
 def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
                           increments: int | None = None, progress: bool = False,
-                          max_steps: int | None = None, **options) -> Run:
+                          max_steps: int | None = None, threads: int | None = None,
+                          **options) -> Run:
     """A path in gamma or in c0 at the fixed volume of step ``step`` of ``run``, in ``out``.
 
     Give ``gamma`` or ``c0``: a target value with ``increments`` (gamma in equal ratios from
@@ -204,7 +218,10 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
     start only. The table has a ``gamma`` column; :meth:`Run.params_at` gives the parameters
     of each step, and ``continue_from`` on the result deflates further at the path's end.
     The run stays resumable (call again with the same arguments, or :func:`resume`).
+    ``max_steps`` and ``threads`` as in :func:`deflate`; an unknown option is a TypeError.
     """
+    if threads is not None:
+        threads = check_threads(threads)
     parent = Run.of(run)
     if (gamma is None) == (c0 is None):
         raise ValueError("give exactly one of gamma=... and c0=... (the parameter to follow)")
@@ -226,11 +243,12 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
     def setup():
         store = parent.store.branch(out, step, params=params.to_dict(),
                                     protocol=protocol.to_dict(),
-                                    extra_meta={"path": path, SOLVER_MODE: solver_mode(None)},
+                                    extra_meta={"path": path,
+                                                SOLVER_MODE: solver_mode(threads)},
                                     record={"gamma": params.gamma})
         return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
-    return _drive(setup, progress=progress, max_steps=max_steps)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
 
 
 def _parameter_values(control: str, value, start: float, increments) -> np.ndarray:
@@ -253,6 +271,15 @@ def _parameter_values(control: str, value, start: float, increments) -> np.ndarr
 def _branch_fields(parent: Run, step: int, options: dict) -> dict:
     """The protocol fields of a branch from step ``step``: the parent's, with ``options``
     replacing them and the c0 in force at that step (after a c0 path)."""
+    import dataclasses
+
+    names = {f.name for f in dataclasses.fields(Protocol)} - {"schedule", "control",
+                                                              "fixed_dV_over_V"}
+    unknown = sorted(set(options) - names)
+    if unknown:
+        raise TypeError(f"unknown option(s) {', '.join(unknown)}: a continued run takes the "
+                        f"protocol's options ({', '.join(sorted(names))}), progress, "
+                        "max_steps and threads")
     base = parent.protocol
     if base.shape_imperfection and options.get("seed", base.seed) != base.seed:
         raise ValueError(f"seed {options['seed']!r}: a continued run keeps the seed "
@@ -328,6 +355,20 @@ def solver_mode(threads: int | None) -> str:
     return "reproducible" if check_mode(None, threads or default_threads()) else "plain"
 
 
+def check_max_steps(max_steps) -> None:
+    """``TypeError``/``ValueError`` unless ``max_steps`` is None or an integer >= 0."""
+    import numbers
+
+    if max_steps is None:
+        return
+    if not isinstance(max_steps, numbers.Integral) or isinstance(max_steps, bool):
+        raise TypeError(f"max_steps must be an integer >= 0 (new steps before the run pauses) "
+                        f"or None, got {type(max_steps).__name__} {max_steps!r}")
+    if max_steps < 0:
+        raise ValueError(f"max_steps = {max_steps!r}: allowed: an integer >= 0 (new steps "
+                         "before the run pauses) or None")
+
+
 def _drive(setup, *, progress: bool, max_steps: int | None = None,
            threads: int | None = None, locate: float | None = None) -> Run:
     """Run a protocol into a store from its last step; ``setup()`` opens the store and gives
@@ -337,6 +378,11 @@ def _drive(setup, *, progress: bool, max_steps: int | None = None,
     (Ctrl-C or SIGTERM, wherever it arrived: see :class:`_Interrupts` and
     :func:`interrupt_of`). A finished run's events are then located to the tolerance
     ``locate`` (None: not located), :func:`_locate`."""
+    check_max_steps(max_steps)
+    if locate is not None:
+        from .locate import check_tol
+
+        check_tol(locate)
     interrupts = _Interrupts()
     try:
         store, mesh, params, protocol = setup()
@@ -596,6 +642,76 @@ ON_SPHERE_TOL = 1e-9
 """Largest relative spread of the vertex radii about the fitted sphere of a mesh that a shape
 imperfection may start from: its material points are the vertices' directions on that sphere,
 so any other mesh would first be moved onto it."""
+
+
+#: How far the radius of a stress-free mesh (that of the sphere of its volume) may lie from
+#: the shell's R: a coarse icosphere's is 2-4 % below; a mesh in other units is off by
+#: factors.
+RADIUS_TOL = 0.2
+
+
+def check_mesh_fits(mesh: Mesh, params: ShellParameters, form_factors=None) -> None:
+    """``ValueError`` unless ``mesh`` can be the shell of ``params``: its faces point outward
+    (it encloses a positive volume), ``form_factors`` (if given) are a valid rest metric of
+    its faces, and without them (the mesh is the stress-free shell) the radius of the sphere
+    of its volume is ``params.R`` within :data:`RADIUS_TOL`. Checked before a run folder is
+    made."""
+    from .energies.stretching import Stretching
+    from .energies.volume import Volume
+
+    V = Volume(mesh.faces, mesh.n_vertices).value(mesh.X)
+    if not V > 0:
+        raise ValueError(f"mesh encloses a non-positive volume {V!r}: its faces must point "
+                         "outward (reverse them: Mesh.from_arrays(X, faces[:, ::-1]))")
+    if form_factors is not None:
+        Stretching.from_form_factors(mesh.faces, mesh.n_vertices, form_factors, 1.0, 0.0)
+        return
+    R_mesh = (3.0 * V / (4.0 * np.pi)) ** (1.0 / 3.0)
+    if not abs(R_mesh / params.R - 1.0) <= RADIUS_TOL:
+        raise ValueError(f"mesh radius {R_mesh:.6g} (the sphere of its volume) is not the "
+                         f"shell's R = {params.R:.6g} (allowed: within {RADIUS_TOL:.0%}): "
+                         f"build the mesh with R=params.R (icosphere(n, R=...), "
+                         "random_sphere(n, R=...)) or give the parameters its radius")
+
+
+def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
+                        pressures=None) -> None:
+    """``ValueError`` for a spontaneous curvature or pressures the shell of ``params`` on
+    ``mesh`` cannot take (the command line's rules): a preferred radius ``2/|c0|`` shorter
+    than the mesh's mean edge, an overpressure at or above the classical buckling pressure
+    (the shell turns inside out) or below ``-gamma`` (it more than doubles its volume). A
+    mesh that does not resolve the elastic length (:mod:`shellbuckle.resolution`) is only
+    warned about: a coarse mesh is a legitimate, if rough, model."""
+    from .resolution import gamma_resolved, vertices_needed
+
+    n = mesh.n_vertices
+    edges = mesh.X[mesh.topology.edges]
+    mean = float(np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean())
+    if c0 is not None:
+        if not (isinstance(c0, (int, float, np.floating, np.integer)) and np.isfinite(c0)):
+            raise ValueError(f"c0 = {c0!r}: allowed: a finite number (units 1/length)")
+        if abs(c0) > 2.0 / mean:
+            raise ValueError(f"c0 = {c0!r}: allowed |c0| <= {2.0 / mean:.4g} on this mesh (the "
+                             f"preferred radius 2/|c0| must be at least its mean edge "
+                             f"{mean:.3g}; c0 = 2/R = {2.0 / params.R:g} is the stress-free "
+                             "sphere)")
+    if pressures is not None:
+        from .theory import classical_threshold
+
+        p_c = classical_threshold(params).pressure * params.R ** 3 / params.kappa
+        for p in np.atleast_1d(np.asarray(pressures, dtype=float)):
+            if not -params.gamma <= p < p_c:
+                raise ValueError(f"pressure {float(p)!r}: allowed overpressures in "
+                                 f"[{-params.gamma:g}, {p_c:.6g}) kappa/R^3 at gamma = "
+                                 f"{params.gamma:g} (above the classical buckling pressure the "
+                                 "shell turns inside out; below -gamma it more than doubles "
+                                 "its volume)")
+    need = vertices_needed(params.gamma_effective)
+    if n < need:
+        log.warning("the mesh of %d vertices does not resolve the elastic length at "
+                    "(effective) gamma %g: about %d vertices are needed (it resolves gamma <= "
+                    "%.4g); its buckling is the mesh's more than the shell's", n,
+                    params.gamma_effective, need, gamma_resolved(n))
 
 
 def _check_on_sphere(mesh: Mesh) -> None:

@@ -121,7 +121,13 @@ def axisymmetry_threshold(curve: wrinkles.Curve, mean_edge: float) -> float:
 
 
 def classify_descriptors(d: Descriptors) -> Classification:
-    """Classify a conformation from its :class:`~.descriptors.Descriptors`."""
+    """Classify a conformation from its :class:`~.descriptors.Descriptors` (ValueError for a
+    surface enclosing no positive volume: faces pointing inward, which turn every dent into
+    a bump, or a shape no deflation reaches)."""
+    volume = d.geometry.volume
+    if not volume > 0:
+        raise ValueError(f"the surface encloses a non-positive volume {volume!r}: a shell's "
+                         "faces point outward (reverse them: faces[:, ::-1])")
     rim = d.rim
     outline = rim.outline if rim is not None else None
     n = d.n_dimples
@@ -229,6 +235,18 @@ def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
     classify (default all finished steps). Returns ``{step: Classification}``.
     """
     store = _store(run_or_path)
+    if steps is not None:
+        bad = [k for k in steps if isinstance(k, bool) or not isinstance(k, (int, np.integer))]
+        if bad:
+            raise ValueError(f"steps must be integers (step numbers, or negative counted from "
+                             f"the last), got {bad[0]!r}")
+        finished = store.steps
+        missing = [k for k in steps if not (k in finished or -len(finished) <= k < 0)]
+        if missing:
+            raise ValueError(f"step {missing[0]} is not a finished step of run {store.path} "
+                             f"(finished: {len(finished)} steps, "
+                             f"{finished[0] if finished else '-'}..."
+                             f"{finished[-1] if finished else '-'})")
     steps = list(store.steps) if steps is None else [int(k) for k in steps]
     analyzer = ShapeAnalyzer(store.faces, n_vertices=len(store.X0))
     iterator = steps

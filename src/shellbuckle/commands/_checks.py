@@ -30,6 +30,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..resolution import gamma_resolved, mean_edge, vertices_needed  # noqa: F401
 from ..store.names import refuse_store_file
 from ..util import interrupt_of
 
@@ -341,23 +342,6 @@ def add_command(sub, name: str, **kwargs):
 
 
 # --------------------------------------------------------------------------- rules of several options
-
-def mean_edge(n_vertices: int) -> float:
-    """Mean edge / R of a closed triangulated sphere of ``n_vertices``: its 2 (N - 2) faces,
-    near equilateral, cover 4 pi R^2, so a^2 = 8 pi / (sqrt(3) (N - 2))."""
-    return math.sqrt(8.0 * math.pi / (math.sqrt(3.0) * max(n_vertices - 2, 1)))
-
-
-def vertices_needed(gamma_effective: float) -> int:
-    """Vertices of a sphere whose mean edge is at most pi l_el, half the classical buckling
-    wavelength 2 pi l_el (l_el = R gamma^(-1/4)): N >= 8 sqrt(gamma) / (sqrt(3) pi) + 2."""
-    return math.ceil(8.0 * math.sqrt(gamma_effective) / (math.sqrt(3.0) * math.pi)) + 2
-
-
-def gamma_resolved(n_vertices: int) -> float:
-    """The largest (effective) gamma a mesh of ``n_vertices`` resolves."""
-    return (math.sqrt(3.0) * math.pi * (n_vertices - 2) / 8.0) ** 2
-
 
 MESH_RULE = ("the mesh must resolve the elastic length l_el = R gamma^(-1/4): at least "
              f"{EDGES_PER_WAVELENGTH} edges per classical buckling wavelength 2 pi l_el, a mean "

@@ -196,6 +196,12 @@ def _shell(args, seed: int, options: dict):
         if n < RANGES["vertices"].low:
             raise ValueError(f"--mesh {args.mesh}: {n} vertices; "
                              f"allowed: {RANGES['vertices'].explained()}")
+        from ..run import check_mesh_fits
+
+        try:  # outward faces, a valid rest metric, the radius of the shell given
+            check_mesh_fits(mesh, params, from_file.get("form_factors"))
+        except ValueError as exc:
+            raise ValueError(f"--mesh {args.mesh}: {exc}") from None
         _check_shell(args, params, n, f"--mesh {args.mesh}", options)
         return mesh, params, from_file
     params = params_from_args(args)

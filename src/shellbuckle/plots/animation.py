@@ -51,7 +51,20 @@ def frame_steps(steps, every: int | None = None) -> list[int]:
 def _shown(run, every, steps) -> list[int]:
     if not run.steps:
         raise ValueError(f"run {str(run.path)!r} has no finished step")
+    if steps is not None and not len(steps):
+        raise ValueError("steps is empty: give at least one step to show, or None for every "
+                         "step")
     return frame_steps(run.steps, every) if steps is None else [run.step(k) for k in steps]
+
+
+def _check_number(name: str, value, low: float, high: float, integer: bool = False) -> None:
+    """ValueError unless ``value`` is a number in ``[low, high]`` (an integer if asked)."""
+    import numbers
+
+    kind = numbers.Integral if integer else numbers.Real
+    if isinstance(value, bool) or not isinstance(value, kind) or not low <= value <= high:
+        raise ValueError(f"{name} = {value!r}: allowed: {'an integer' if integer else 'a number'}"
+                         f" from {low:g} to {high:g}")
 
 
 def _camera(run, shown, analyzer):
@@ -127,7 +140,13 @@ def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None
 
     from .paper import conformation
 
+    from ..store.names import refuse_store_file
+
+    _check_number("fps", fps, 1, 60, integer=True)  # the command line's --fps and --dpi
+    _check_number("dpi", dpi, 50, 1200, integer=True)
+    _check_number("size", size, 1.0, 40.0)
     path = Path(path)
+    refuse_store_file(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"an animation is written as {' or '.join(FORMATS)}, got "

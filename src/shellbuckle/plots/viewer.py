@@ -59,7 +59,10 @@ def write_html(run, path, color: str = "curvature", step: int = -1) -> Path:
     See the module docstring for what the page shows; ``color`` and ``step`` as in
     :func:`html_page`.
     """
+    from ..store.names import refuse_store_file
+
     path = Path(path)
+    refuse_store_file(path)  # before the page is built
     if not path.parent.is_dir():
         raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
     return ViewerPage(html_page(run, color, step)).write(path)

@@ -246,7 +246,10 @@ class ViewerPage:
     def write(self, path) -> Path:
         """Write the page to ``path`` (its folder must exist); return the path, also kept in
         :attr:`path`."""
+        from ..store.names import refuse_store_file
+
         path = Path(path)
+        refuse_store_file(path)
         if not path.parent.is_dir():
             raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
         path.write_text(self.html, encoding="utf-8")

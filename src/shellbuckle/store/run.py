@@ -112,6 +112,7 @@ from .layout import (_INTEGER_COLUMNS, _WRITER_FILES, ANALYSIS_COLUMNS,  # noqa:
                      check_format, step_file, write_array)
 from .meta import (_differences, _identity, _json_dict, _jsonable, _scalar_dict,  # noqa: F401
                    _session, _short, _versions, source_commit)
+from .names import store_file
 from .repair import (_check_fields, _how_to_replace_run_json, _read_meta,  # noqa: F401
                      _rebuilt_meta, _redo_branch, _stored_description, damaged_to_set_aside,
                      set_aside_step)
@@ -243,6 +244,11 @@ class RunStore:
         if path.exists() and not path.is_dir():
             raise ValueError(f"{path} is an existing file; a run needs a folder (choose "
                              "another --out)")
+        found = store_file(path)
+        if found is not None:  # e.g. inside another run's steps/
+            raise ValueError(f"{path} is inside {found[1]}/ of the {found[2]} in {found[0]}, "
+                             f"which only that {found[2]}'s store writes; choose another "
+                             "folder for the run")
         if (path / RUN_JSON).exists():
             return cls._reopen(path, meta)
         if path.exists() and not _interrupted_creation(path):

@@ -376,8 +376,11 @@ def write_report(paths, out, fmt: str = "md", *, reference: dict, comparison: Co
     ``figures`` Figs. 4, 5 and 10 of :mod:`shellbuckle.plots.across` are drawn: as PNG files
     in ``<out stem>_figures/`` linked from a Markdown report, embedded in the HTML one.
     Returns ``out``."""
+    from ..store.names import refuse_store_file
+
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    refuse_store_file(out)  # before any run is read
     tables: dict = {}
     df = collect_mod.collect_runs(paths, tables=tables)
     fits = collect_mod.threshold_fits(df)

@@ -168,8 +168,11 @@ def transfer(source, step: int, target, *, threads: int | None = 1) -> Transferr
     from ..protocol.deflate import minimize_at_volume
     from ..protocol.imperfection import reference_directions
     from ..protocol.stored import stored_context
+    from ..solve.linear import check_threads
     from ..store.view import Run
 
+    if threads is not None:
+        threads = check_threads(threads)
     source, target = Run.of(source), Run.of(target)
     check_same_shell(source, target)
     record = source.store.record(source.step(step))
