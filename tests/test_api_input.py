@@ -206,3 +206,18 @@ def test_an_animation_refuses_bad_options_before_writing(run_dir, tmp_path, opti
 def test_transfer_refuses_zero_threads(run_dir):
     with pytest.raises(ValueError, match="threads must be an integer >= 1, got 0"):
         transfer(run_dir, -1, run_dir, threads=0)
+
+
+@pytest.mark.parametrize("options, error, said", [
+    (dict(c0="2"), TypeError, "c0 must be a number, got str '2'"),
+    (dict(tol="1e-9"), TypeError, "tol must be a number"),
+    (dict(seed=True), TypeError, "seed must be an integer, got bool True"),
+    (dict(c0_cycle="no"), TypeError, "c0_cycle must be True or False"),
+    (dict(until=0.01), ValueError, "until = 0.01 is less than one step dv = 0.019"),
+    (dict(until=5.0), ValueError, r"until = 5.0: allowed: a dV/V in \(-1, 0.99\)"),
+], ids=["c0 text", "tol text", "seed bool", "flag text", "until within a step", "until > 1"])
+def test_protocol_options_of_the_wrong_kind_are_named(tmp_path, options, error, said):
+    with pytest.raises(error, match=said):
+        deflate(icosphere(3), PARAMS, out=tmp_path / "r", threads=1, locate=False,
+                **({"until": 0.08} | options))
+    assert not (tmp_path / "r").exists()

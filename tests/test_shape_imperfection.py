@@ -360,7 +360,7 @@ def test_a_continued_imperfect_shell_keeps_its_seed_and_the_api_refuses_before_a
     X = mesh.X.copy()
     X[0] *= 0.99
     with pytest.raises(ValueError, match="lie on a sphere"):
-        deflate(Mesh(X, mesh.faces), params, out=tmp_path / "off", schedule=[0.03],
+        deflate(Mesh.from_arrays(X, mesh.faces), params, out=tmp_path / "off", schedule=[0.03],
                 smooth_jiggle=0.0, shape_imperfection=0.004, shape_degree=6)
     assert not (tmp_path / "off").exists()
     with pytest.raises(ValueError, match="shape_degree"):

@@ -688,7 +688,9 @@ def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
     edges = mesh.X[mesh.topology.edges]
     mean = float(np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean())
     if c0 is not None:
-        if not (isinstance(c0, (int, float, np.floating, np.integer)) and np.isfinite(c0)):
+        if isinstance(c0, bool) or not isinstance(c0, (int, float, np.floating, np.integer)):
+            raise TypeError(f"c0 must be a number, got {type(c0).__name__} {c0!r}")
+        if not np.isfinite(c0):
             raise ValueError(f"c0 = {c0!r}: allowed: a finite number (units 1/length)")
         if abs(c0) > 2.0 / mean:
             raise ValueError(f"c0 = {c0!r}: allowed |c0| <= {2.0 / mean:.4g} on this mesh (the "

@@ -32,7 +32,13 @@ def linear_schedule(dv: float = PAPER_DV, until: float = 0.95, start: float = 0.
         direction = "larger" if dv > 0 else "smaller"
         raise ValueError(f"until = {until!r} must be {direction} than the start dV/V = {start!r} "
                          f"for dv = {dv!r}")
+    if not -1.0 < until < MAX_DV_OVER_V:
+        raise ValueError(f"until = {until!r}: allowed: a dV/V in (-1, {MAX_DV_OVER_V}) "
+                         "(dV/V = 1 - V/V0)")
     n = steps_between(start, until, dv)
+    if n == 0:
+        raise ValueError(f"until = {until!r} is less than one step dv = {dv!r} from the start "
+                         f"dV/V = {start!r}: no target in between")
     return check_schedule(start + dv * np.arange(1, n + 1))
 
 

@@ -111,7 +111,34 @@ class Protocol:
     shape_imperfection: float | None = None
     shape_degree: int | None = None
 
+    def _check_types(self) -> None:
+        """TypeError naming a field whose value is of the wrong kind: a number given as text
+        (a numpy error deep inside, or a comparison of str and float, otherwise), a boolean
+        where a number or an integer is meant (``seed=True`` was stored as ``true``)."""
+        import numbers
+
+        for name in ("c0", "jiggle", "temperature", "tol", "fixed_dV_over_V", "smooth_jiggle",
+                     "shape_imperfection"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, (bool, np.bool_))
+                                      or not isinstance(value, numbers.Real)):
+                raise TypeError(f"{name} must be a number, got {type(value).__name__} "
+                                f"{value!r}")
+        for name in ("seed", "max_iter", "smooth_degree", "shape_degree"):
+            value = getattr(self, name)  # (a fractional number: the ValueError of its range)
+            if value is not None and (isinstance(value, (bool, np.bool_))
+                                      or not isinstance(value, numbers.Real)):
+                raise TypeError(f"{name} must be an integer, got {type(value).__name__} "
+                                f"{value!r}")
+        for name in ("c0_cycle", "stop_at_contact", "prerelax", "direct_return",
+                     "relax_imperfection"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {type(value).__name__} "
+                                f"{value!r}")
+
     def __post_init__(self):
+        self._check_types()
         if self.control not in CONTROLS:
             raise ValueError(f"control must be one of {', '.join(CONTROLS)}, got {self.control!r}")
         if (self.fixed_dV_over_V is None) == (self.control in PARAMETER_CONTROLS):
