@@ -215,7 +215,10 @@ def test_transfer_refuses_zero_threads(run_dir):
     (dict(c0_cycle="no"), TypeError, "c0_cycle must be True or False"),
     (dict(until=0.01), ValueError, "until = 0.01 is less than one step dv = 0.019"),
     (dict(until=5.0), ValueError, r"until = 5.0: allowed: a dV/V in \(-1, 0.99\)"),
-], ids=["c0 text", "tol text", "seed bool", "flag text", "until within a step", "until > 1"])
+    (dict(schedule=[0.02, 0.04]), ValueError, "give either schedule or dv and until"),
+    (dict(pressures=[1.0], dv=0.01, until=None), ValueError, "give either pressures or dv"),
+], ids=["c0 text", "tol text", "seed bool", "flag text", "until within a step", "until > 1",
+        "schedule and until", "pressures and dv"])
 def test_protocol_options_of_the_wrong_kind_are_named(tmp_path, options, error, said):
     with pytest.raises(error, match=said):
         deflate(icosphere(3), PARAMS, out=tmp_path / "r", threads=1, locate=False,

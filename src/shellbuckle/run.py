@@ -27,7 +27,7 @@ from .mesh.mesh import Mesh
 from .params import DEFAULT_CONVENTION, MAIN_JOB_GAMMA, ShellParameters, bending_factor
 from .protocol import deflate as protocol_mod
 from .protocol.deflate import Protocol, State
-from .protocol.schedule import PAPER_DV, geometric_schedule, linear_values
+from .protocol.schedule import geometric_schedule, linear_values
 from .protocol.spec import DEFAULT_MAX_ITER
 from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
@@ -46,7 +46,8 @@ def default_out(params: ShellParameters, seed: int) -> Path:
 
 
 def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
-            dv: float = PAPER_DV, until: float = 0.95, schedule=None, c0_cycle: bool = True,
+            dv: float | None = None, until: float | None = None, schedule=None,
+            c0_cycle: bool = True,
             jiggle: float | None = None, temperature: float | None = None, seed: int = 0,
             bending: str = "juelicher", method: str = "newton", tol: float = 1e-9,
             max_iter: int = DEFAULT_MAX_ITER, stop_at_contact: bool = True,
@@ -61,7 +62,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
 
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
     ``seed``); ``params`` to gamma = 15163, nu = 1/3 (it wrinkles). The schedule is
-    ``dv, 2 dv, ...`` up to ``until`` unless ``schedule`` (a list of target dV/V) is given. If ``out`` already holds
+    ``dv, 2 dv, ...`` up to ``until`` (defaults: the paper's step 0.019 and 0.95) unless
+    ``schedule`` (a list of target dV/V) or ``pressures`` is given, which exclude them. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
     ``pressures`` (a list of external overpressures, units kappa/R^3) switches to pressure
@@ -129,12 +131,18 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                              "form_factors (Surface Evolver's rest metrics), not both")
         if shape_imperfection:
             _check_on_sphere(mesh)
+    if (schedule is not None or pressures is not None) and (dv is not None or until is not None):
+        given = "schedule" if schedule is not None else "pressures"
+        raise ValueError(f"give either {given} or dv and until (a schedule dv, 2 dv, ... up to "
+                         f"until), not both: dv = {dv!r}, until = {until!r} would be ignored")
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
         protocol = Protocol(schedule=tuple(np.atleast_1d(pressures)), control="pressure", **options)
     elif schedule is None:
-        protocol = Protocol.paper(dv=dv, until=until, **options)
+        paper = {"dv": dv, "until": until}  # the paper's step and last target where not given
+        protocol = Protocol.paper(**{k: v for k, v in paper.items() if v is not None},
+                                  **options)
     else:
         protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)
     out = Path(out) if out is not None else default_out(params, seed)

@@ -121,6 +121,12 @@ def _protocol(args) -> dict:
                         len(options[name]))
     if options.get("schedule") is not None and options.get("pressures") is not None:
         raise ValueError("give either --schedule or --pressures, not both")
+    listed = "--schedule" if options.get("schedule") is not None else (
+        "--pressures" if options.get("pressures") is not None else None)
+    for name in ("dv", "until"):
+        if listed and name in options:
+            raise ValueError(f"--{name} {typed(args, '--' + name, options[name])}: allowed: "
+                             f"without {listed}, which lists the targets itself")
     _check_smooth_options(args, options)
     defaults = protocol_defaults()
     dv, until = options.get("dv", defaults["dv"]), options.get("until", defaults["until"])
