@@ -177,13 +177,13 @@ def resume(path, *, progress: bool = False, max_steps: int | None = None,
 def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None,
                   until: float | None = None, progress: bool = False,
                   max_steps: int | None = None, threads: int | None = None,
-                  **options) -> Run:
+                  locate: bool = False, locate_tol: float = LOCATE_TOL, **options) -> Run:
     """A new run in ``out`` starting from step ``step`` of ``run`` with a new volume schedule.
 
     Give ``schedule`` (target dV/V list), or ``dv`` and ``until`` (``dv < 0`` re-inflates).
     Other protocol options default to the parent's (an unknown one is a TypeError). The
-    stress-free reference stays the parent's initial sphere. ``max_steps`` and ``threads`` as
-    in :func:`deflate`.
+    stress-free reference stays the parent's initial sphere. ``max_steps``, ``threads``,
+    ``locate`` and ``locate_tol`` as in :func:`deflate` (not located unless asked).
     """
     if threads is not None:
         threads = check_threads(threads)
@@ -207,12 +207,14 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
                                     extra_meta={SOLVER_MODE: solver_mode(threads)})
         return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
-    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
+                  locate=locate_tol if locate else None)
 
 
 def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
                           increments: int | None = None, progress: bool = False,
                           max_steps: int | None = None, threads: int | None = None,
+                          locate: bool = False, locate_tol: float = LOCATE_TOL,
                           **options) -> Run:
     """A path in gamma or in c0 at the fixed volume of step ``step`` of ``run``, in ``out``.
 
@@ -226,7 +228,8 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
     start only. The table has a ``gamma`` column; :meth:`Run.params_at` gives the parameters
     of each step, and ``continue_from`` on the result deflates further at the path's end.
     The run stays resumable (call again with the same arguments, or :func:`resume`).
-    ``max_steps`` and ``threads`` as in :func:`deflate`; an unknown option is a TypeError.
+    ``max_steps``, ``threads``, ``locate`` and ``locate_tol`` as in :func:`deflate` (not
+    located unless asked); an unknown option is a TypeError.
     """
     if threads is not None:
         threads = check_threads(threads)
@@ -256,7 +259,8 @@ def continue_in_parameter(run, step: int, out, *, gamma=None, c0=None,
                                     record={"gamma": params.gamma})
         return store, Mesh.from_arrays(store.X0, store.faces), params, protocol
 
-    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads)
+    return _drive(setup, progress=progress, max_steps=max_steps, threads=threads,
+                  locate=locate_tol if locate else None)
 
 
 def _parameter_values(control: str, value, start: float, increments) -> np.ndarray:
@@ -287,7 +291,7 @@ def _branch_fields(parent: Run, step: int, options: dict) -> dict:
     if unknown:
         raise TypeError(f"unknown option(s) {', '.join(unknown)}: a continued run takes the "
                         f"protocol's options ({', '.join(sorted(names))}), progress, "
-                        "max_steps and threads")
+                        "max_steps, threads, locate and locate_tol")
     base = parent.protocol
     if base.shape_imperfection and options.get("seed", base.seed) != base.seed:
         raise ValueError(f"seed {options['seed']!r}: a continued run keeps the seed "
