@@ -76,6 +76,8 @@ CASES = [
     (["deflate", "--mesh", "{badvtu}", "--out", "{tmp}/r"], "--mesh", "bad.vtu"),
     (["deflate", "--schedule", "0.02,0.04", "--dv", "0.01", "--out", "{tmp}/r"], "--dv",
      "0.01"),
+    (["continue", "{run}", "--schedule", "0.06", "--until", "0.9", "--out", "{tmp}/c"],
+     "--until", "0.9"),
     (["deflate", "--pressures", "1,2", "--until", "0.5", "--out", "{tmp}/r"], "--until", "0.5"),
     (["deflate", "--mesh", "{unitvtk}", "--E", "1e8", "--sigma", "0.5", "--d", "2e-9", "--R",
       "2e-8", "--out", "{tmp}/r"], "--mesh", "unit.vtk"),

@@ -432,7 +432,7 @@ def test_a_run_json_of_another_run_on_the_same_mesh_is_refused(folder, tmp_path,
     before = {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
     for argv in (["resume", str(folder), "--quiet", "--no-plot", "--no-locate"],
                  ["export", str(folder), "--step", "-1", "--format", "vtk", "--out",
-                  str(tmp_path / "x.vtk")]):
+                  str(tmp_path / "x.vtk")], ["table", str(folder)]):
         code, _, err = _cli(argv)
         assert code == 2 and "Traceback" not in err, err
         assert "run.json is another run's" in err and "mixes two runs" in err, err
@@ -440,6 +440,8 @@ def test_a_run_json_of_another_run_on_the_same_mesh_is_refused(folder, tmp_path,
     assert not (tmp_path / "x.vtk").exists()
     assert {p.relative_to(folder): p.read_bytes() for p in folder.rglob("*")
             if p.is_file()} == before
+    with pytest.raises(ValueError, match="mixes two runs"):  # not "every step is damaged"
+        Run.open(folder).steps
     (folder / "run.json").rename(folder / "run.json.bad")  # what the message says to do
     assert Run.open(folder).params.gamma == pytest.approx(271.0)
 

@@ -344,7 +344,8 @@ def test_a_failing_run_is_recorded_and_the_others_finish(reference_sweep):
     assert sorted(failed["name"]) == sorted(invalid)
     assert (catalogue["status"] != "failed").sum() == 4
     for _, row in failed.iterrows():
-        assert "schedule" in row["message"] and row["message"].startswith("ValueError")
+        assert "less than one step" in row["message"] and \
+            row["message"].startswith("ValueError")
         assert "Traceback" in (out / row["traceback"]).read_text()
         assert not (out / row["name"]).exists()
 

@@ -125,3 +125,23 @@ def test_a_colloid_in_si_units_buckles_as_the_same_shell_in_reduced_units(tmp_pa
     # before the buckling the minimizations take the same steps (the rounding of the two
     # unit systems differs, so the buckling step may take another path to the same minimum)
     assert b.table["iterations"].tolist()[:4] == a.table["iterations"].tolist()[:4]
+
+
+def test_a_colloid_under_pressure_in_si_units_is_the_reduced_shell(tmp_path):
+    """Pressures are in the shell's own units (Pa for a material): 50 kappa/R^3, below the
+    classical buckling pressure, is accepted in Pa and shrinks the shell as the reduced run's
+    50 does."""
+    material = ShellParameters.from_material(E=1e8, sigma=0.5, d=2e-9, R=2e-8)
+    reduced = ShellParameters.from_gamma(material.gamma, nu=material.nu)
+    unit = material.kappa / material.R ** 3
+    a = deflate(icosphere(4), reduced, pressures=[50.0], out=tmp_path / "g", locate=False,
+                threads=1)
+    b = deflate(icosphere(4, R=material.R), material, pressures=[50.0 * unit],
+                out=tmp_path / "m", locate=False, threads=1)
+    assert a.table["dV_over_V"].iloc[-1] > 0.01
+    np.testing.assert_allclose(b.table["dV_over_V"].to_numpy(float),
+                               a.table["dV_over_V"].to_numpy(float), rtol=1e-9, atol=1e-15)
+    with pytest.raises(ValueError, match="allowed overpressures"):  # above p_c in Pa
+        deflate(icosphere(4, R=material.R), material, pressures=[200.0 * unit],
+                out=tmp_path / "x", locate=False, threads=1)
+    assert not (tmp_path / "x").exists()

@@ -66,7 +66,8 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``schedule`` (a list of target dV/V) or ``pressures`` is given, which exclude them. If ``out`` already holds
     this same run it is resumed; if it holds a different run a ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
-    ``pressures`` (a list of external overpressures, units kappa/R^3) switches to pressure
+    ``pressures`` (a list of external overpressures in the shell's units: kappa/R^3, Pa for a
+    material) switches to pressure
     control: each step minimizes ``E + p V`` at free volume.
     ``form_factors (F, 3)`` sets the stretching rest state (Surface Evolver's rest metrics)
     instead of the initial mesh. The jiggle is Surface Evolver's at ``temperature`` (default
@@ -190,6 +191,9 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
     parent = Run.of(run)
     step = parent.step(step)
     start = float(parent.store.record(step)["dV_over_V"])
+    if schedule is not None and (dv is not None or until is not None):
+        raise ValueError(f"give either schedule or dv and until, not both: dv = {dv!r}, "
+                         f"until = {until!r} would be ignored")
     if schedule is None:
         if dv is None or until is None:
             raise ValueError("give either schedule=[...] or both dv and until")
@@ -710,16 +714,17 @@ def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
                              f"{mean:.3g}; c0 = 2/R = {2.0 / params.R:g} is the stress-free "
                              "sphere)")
     if pressures is not None:
-        from .theory import classical_threshold
+        from .theory import pressure_bounds
 
-        p_c = classical_threshold(params).pressure * params.R ** 3 / params.kappa
+        low, high = pressure_bounds(params)
         for p in np.atleast_1d(np.asarray(pressures, dtype=float)):
-            if not -params.gamma <= p < p_c:
+            if not low <= p < high:
                 raise ValueError(f"pressure {float(p)!r}: allowed overpressures in "
-                                 f"[{-params.gamma:g}, {p_c:.6g}) kappa/R^3 at gamma = "
-                                 f"{params.gamma:g} (above the classical buckling pressure the "
-                                 "shell turns inside out; below -gamma it more than doubles "
-                                 "its volume)")
+                                 f"[{low:.6g}, {high:.6g}) in the shell's units (kappa/R^3 = "
+                                 f"{params.kappa / params.R ** 3:.6g}) at gamma = "
+                                 f"{params.gamma:g}: [-gamma, p_c) (above the classical "
+                                 "buckling pressure p_c the shell turns inside out; below "
+                                 "-gamma kappa/R^3 it more than doubles its volume)")
     need = vertices_needed(params.gamma_effective)
     if n < need:
         log.warning("the mesh of %d vertices does not resolve the elastic length at "

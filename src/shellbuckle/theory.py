@@ -344,6 +344,14 @@ class ClassicalThreshold:
     dV_over_V_exact: float
 
 
+def pressure_bounds(params: ShellParameters) -> tuple[float, float]:
+    """The overpressures a pressure-controlled shell can take, ``[low, high)`` in its own
+    units (kappa/R^3 in reduced units, Pa for a material): ``low = -gamma kappa/R^3`` (below
+    it the shell more than doubles its volume) and ``high`` the classical buckling pressure
+    (above it the shell has no equilibrium near the sphere and turns inside out)."""
+    return -params.gamma * params.kappa / params.R ** 3, classical_threshold(params).pressure
+
+
 def classical_threshold(params: ShellParameters) -> ClassicalThreshold:
     """Classical buckling pressure and the dV/V at which the shrunk sphere reaches it (with the
     bending modulus and gamma of the standard equivalent of the convention)."""

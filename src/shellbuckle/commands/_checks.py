@@ -377,20 +377,21 @@ def check_c0(option: str, text, c0: float, n_vertices: int, R: float = 1.0) -> N
 
 
 def check_pressures(option: str, texts, pressures, params) -> None:
-    """Each overpressure (units kappa/R^3) in [-gamma, p_c): above the classical buckling
-    pressure p_c a pressure-controlled shell has no equilibrium near the sphere (it turns
-    inside out); below -gamma the shell more than doubles its volume."""
-    from ..theory import classical_threshold
+    """Each overpressure, in the shell's units (kappa/R^3; Pa for a material), in
+    [-gamma kappa/R^3, p_c) (:func:`~shellbuckle.theory.pressure_bounds`): above the classical
+    buckling pressure p_c a pressure-controlled shell has no equilibrium near the sphere (it
+    turns inside out); below -gamma kappa/R^3 it more than doubles its volume."""
+    from ..theory import pressure_bounds
 
-    p_c = classical_threshold(params).pressure * params.R ** 3 / params.kappa
-    low = -params.gamma
+    low, high = pressure_bounds(params)
+    unit = "Pa" if params.is_material else "kappa/R^3"
     for text, p in zip(texts, pressures):
-        if not low <= p < p_c:
-            raise ValueError(f"{option} {text}: allowed overpressures in [{low:g}, {p_c:.6g}) "
-                             f"kappa/R^3 at gamma = {params.gamma:g} (above the classical "
-                             "buckling pressure p_c = 4 sqrt(kappa A)/R^2 a pressure-controlled "
-                             "shell turns inside out; below -gamma it more than doubles its "
-                             "volume)")
+        if not low <= p < high:
+            raise ValueError(f"{option} {text}: allowed overpressures in [{low:.6g}, "
+                             f"{high:.6g}) {unit} at gamma = {params.gamma:g} (above the "
+                             "classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 a "
+                             "pressure-controlled shell turns inside out; below -gamma "
+                             "kappa/R^3 it more than doubles its volume)")
 
 
 def degree_resolved(n_vertices: int) -> int:
@@ -570,6 +571,8 @@ def run_folder(option: str, path, *, mesh: bool = True, params: bool = True):
         from ..run import Run
 
         run = Run.open(path)
+        if not mesh:  # run.json is still the run mesh.h5 was written for
+            run.store.check_owner()
         if mesh:
             run.store.check_mesh()
             if params:

@@ -170,9 +170,10 @@ def _options() -> dict:
         _Option("--schedule", "schedule", "comma-separated target dV/V values instead of "
                 "--dv/--until; each " + RANGES["schedule"].explained(), type=str),
         _Option("--pressures", "pressures", "pressure control: comma-separated external "
-                "overpressures (units kappa/R^3), one per step, instead of a volume schedule; each "
-                "in [-gamma, p_c): below the classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 "
-                "(above it a pressure-controlled shell turns inside out)", type=str),
+                "overpressures (units kappa/R^3; Pa for a shell given by --E --sigma --d --R), "
+                "one per step, instead of a volume schedule; each in [-gamma kappa/R^3, p_c): "
+                "below the classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 (above it a "
+                "pressure-controlled shell turns inside out)", type=str),
         _Option("--no-c0-cycle", "c0_cycle", "skip the zero-spontaneous-curvature cycle, "
                 "which gives the paper's 'potato' shapes", value=False),
         _Option("--temperature", "temperature", "jiggle temperature on Surface Evolver's "

@@ -118,6 +118,10 @@ def _volume_path(parent, step: int, args, options: dict):
                              "a volume path ends at --until")
     schedule = floats("--schedule", args.schedule, "schedule") if args.schedule else None
     if schedule is not None:
+        for name in ("dv", "until"):
+            if getattr(args, name) is not None:
+                raise ValueError(f"--{name} {typed(args, '--' + name, getattr(args, name))}: "
+                                 "allowed: without --schedule, which lists the targets itself")
         check_steps("--schedule", args.schedule, len(schedule))
         return continue_from(parent, step, args.out, schedule=schedule,
                              progress=not args.quiet, **options)

@@ -152,9 +152,9 @@ def _check_mesh(X0, faces, rest):
 _MESHES_CHECKED: set[tuple] = set()
 
 
-def _read_mesh_and_owner(f) -> tuple:
-    """The mesh arrays of an open mesh.h5 and the run id of the copy of run.json it holds
-    (None if it holds no readable copy)."""
+def _description_owner(f) -> str | None:
+    """The run id of the copy of run.json an open mesh.h5 holds (None if it holds no
+    readable copy)."""
     text = f.attrs.get(DESCRIPTION_ATTR)
     if isinstance(text, bytes):
         text = text.decode("utf-8", "replace")
@@ -162,7 +162,12 @@ def _read_mesh_and_owner(f) -> tuple:
         owner = json.loads(text).get("run_id") if isinstance(text, str) else None
     except (json.JSONDecodeError, AttributeError):
         owner = None
-    return (*_read_mesh_arrays(f), owner if isinstance(owner, str) else None)
+    return owner if isinstance(owner, str) else None
+
+
+def _read_mesh_and_owner(f) -> tuple:
+    """The mesh arrays of an open mesh.h5 and the run id of the copy of run.json it holds."""
+    return (*_read_mesh_arrays(f), _description_owner(f))
 
 
 def _interrupted_creation(path: Path) -> bool:
@@ -192,6 +197,7 @@ class RunStore:
         self._rebuilt = rebuilt  # meta rebuilt from mesh.h5: run.json is to be written again
         self._writer = FileLock(self._path / WRITER_LOCK)
         self._mesh_cache = None
+        self._owner_checked = False
         # per step: (file signature, record or None, what is wrong or None), as checked
         self._step_cache: dict[int, tuple[tuple, dict | None, str | None]] = {}
         self._scan_cache: tuple | None = None  # (key, stored steps, damaged)
@@ -436,15 +442,34 @@ class RunStore:
                     f"(SHA-256): the mesh file was changed or damaged, or {RUN_JSON} is "
                     f"another run's; restore the folder from a backup (a {RUN_JSON} removed "
                     f"is rebuilt from the copy in {MESH_H5})")
-            if owner is not None and owner != self.run_id:
-                raise ValueError(
-                    f"{self._path / RUN_JSON} is another run's (run id {self.run_id[:12]}...) "
-                    f"than {MESH_H5} (written for run {owner[:12]}...): the folder mixes two "
-                    f"runs; restore {RUN_JSON} from a backup, or move it aside (`mv "
-                    f"{self._path / RUN_JSON} {self._path / RUN_JSON}.bad`) and the run opens "
-                    f"from the copy in {MESH_H5}")
+            self._refuse_owner(owner)
             self._mesh_cache = X0, faces, rest
         return self._mesh_cache
+
+    def _refuse_owner(self, owner: str | None) -> None:
+        """ValueError if mesh.h5's copy of run.json names another run than run.json."""
+        if owner is not None and owner != self.run_id:
+            raise ValueError(
+                f"{self._path / RUN_JSON} is another run's (run id {self.run_id[:12]}...) than "
+                f"{MESH_H5} (written for run {owner[:12]}...): the folder mixes two runs; "
+                f"restore {RUN_JSON} from a backup, or move it aside (`mv "
+                f"{self._path / RUN_JSON} {self._path / RUN_JSON}.bad`) and the run opens from "
+                f"the copy in {MESH_H5}")
+        self._owner_checked = True
+
+    def check_owner(self) -> None:
+        """ValueError if ``run.json`` is another run's than the one ``mesh.h5`` was written for
+        (their run ids): the folder mixes two runs. Reads only the copy of run.json that
+        mesh.h5 holds; a mesh.h5 that is missing or unreadable tells nothing here
+        (:meth:`check_mesh` names it). Checked before the steps are first scanned, so that no
+        reader takes this run's step files for another run's."""
+        if self._owner_checked or self._mesh_cache is not None:
+            return
+        try:
+            owner = _read_h5(self._path / MESH_H5, _description_owner)
+        except ValueError:
+            return
+        self._refuse_owner(owner)
 
     def check_mesh(self) -> None:
         """ValueError unless mesh.h5 is readable and is the mesh run.json describes (its
@@ -498,6 +523,7 @@ class RunStore:
         on a later scan. ``warn``: log a warning when the damaged steps differ from the last
         ones warned about.
         """
+        self.check_owner()
         try:
             names = os.listdir(self._path / STEPS_DIR)
         except FileNotFoundError:
