@@ -521,7 +521,8 @@ def test_a_lost_run_of_a_sweep_is_named_and_a_file_in_its_place_refused(referenc
 
 
 def test_a_finished_run_with_a_damaged_mesh_is_no_success_in_the_catalogue(reference_sweep,
-                                                                           tmp_path):
+                                                                           tmp_path, caplog):
+    import logging
     import shutil
 
     out, catalogue = reference_sweep
@@ -533,3 +534,10 @@ def test_a_finished_run_with_a_damaged_mesh_is_no_success_in_the_catalogue(refer
     assert row["status"] == "failed" and "mesh.h5" in row["message"]
     others = Catalogue.load(copy).set_index("name").drop(index=name)
     assert (others["status"] == catalogue.set_index("name").drop(index=name)["status"]).all()
+    # the sweep run again (failed runs retried) names it and leaves it: no attempt can mend it
+    attempts = (copy / "logs" / f"{name}.json").read_bytes()
+    with caplog.at_level(logging.WARNING, logger="shellbuckle.sweep"):
+        again = run_sweep(_small_spec(), copy, workers=1, progress=False)
+    assert (copy / "logs" / f"{name}.json").read_bytes() == attempts
+    assert f"{name} finished, but its mesh.h5 is not the mesh" in caplog.text
+    assert again.set_index("name").loc[name, "status"] == "failed"

@@ -527,8 +527,9 @@ def run_name(point: dict) -> str:
 
 def _run_state(folder: Path, analyze: bool) -> str:
     """``done`` (finished, and analysed when asked), ``analyze`` (finished, not analysed),
-    ``failed`` (failed, or finished with a mesh.h5 that is not its run.json's, as the
-    catalogue lists it), or ``todo`` (absent or resumable). Reads only; never takes a lock."""
+    ``damaged`` (finished with a mesh.h5 that is not its run.json's: the catalogue lists it
+    as failed, and no new attempt can mend it), ``failed``, or ``todo`` (absent or
+    resumable). Reads only; never takes a lock."""
     from .store.run import RUN_JSON, RunStore
 
     if not (folder / RUN_JSON).exists():
@@ -541,7 +542,7 @@ def _run_state(folder: Path, analyze: bool) -> str:
         try:
             store.check_mesh()
         except ValueError:
-            return "failed"
+            return "damaged"
         if analyze and _analysis_available() and not analysis_complete(store):
             return "analyze"
         return "done"
@@ -825,6 +826,12 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
     todo = []
     for p in points:
         state = _run_state(out_dir / p["name"], analyze)
+        if state == "damaged":
+            log.warning("run %s finished, but its mesh.h5 is not the mesh its run.json describes "
+                        "(changed or damaged): listed as failed and not computed again (a "
+                        "resume refuses it); restore its folder from a backup, or move it "
+                        "aside and the next sweep computes it anew", out_dir / p["name"])
+            continue
         last = read_attempts(out_dir, p["name"])[-1:]
         failed = state == "failed" or (last and last[0].get("outcome") == "failed"
                                        and state != "done")
