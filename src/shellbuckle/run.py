@@ -63,8 +63,9 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
     ``mesh`` defaults to the paper's randomized sphere with 3594 vertices (seeded with
     ``seed``); ``params`` to gamma = 15163, nu = 1/3 (it wrinkles). The schedule is
     ``dv, 2 dv, ...`` up to ``until`` (defaults: the paper's step 0.019 and 0.95) unless
-    ``schedule`` (a list of target dV/V) or ``pressures`` is given, which exclude them. If ``out`` already holds
-    this same run it is resumed; if it holds a different run a ``ValueError`` says so.
+    ``schedule`` (a list of target dV/V) or ``pressures`` is given, which exclude them. If
+    ``out`` already holds this same run it is resumed; if it holds a different run a
+    ``ValueError`` says so.
     ``max_steps`` stops after that many new steps (the run stays resumable).
     ``pressures`` (a list of external overpressures in the shell's units: kappa/R^3, Pa for a
     material) switches to pressure

@@ -41,8 +41,8 @@ Guarantees and how they are kept:
   written (a disk fault, a copy cut short, a hand edit): empty, truncated, junk, a broken
   record, positions whose bytes changed. Every step file is checked when it is read — it opens
   as HDF5, its record parses and names its step, its positions have the run's shape, it names this
-  run and its content matches its checksums (step files written before the checksums were introduced are
-  read unchecked) — and a damaged one is left out of :attr:`RunStore.steps` and the table and
+  run and its content matches its checksums (step files written before the checksums were
+  introduced are read unchecked) — and a damaged one is left out of :attr:`RunStore.steps` and the table and
   listed with what is wrong in :attr:`RunStore.damaged`; the good steps stay readable. Resuming
   sets damaged last steps aside (``step_....h5.damaged-<n>``) and computes them again; a
   damaged step followed by good ones stops the resume with the step to continue from.

@@ -6,8 +6,9 @@ column, and all of it as JSON in ``record_json``), optional extra arrays in the 
 ``arrays/``, in the attribute ``sha256`` the SHA-256 checksums of that content
 (:func:`step_checksums`) and in the attribute ``run_id`` the id of the run it was written for.
 :func:`read_step_file` verifies a file (HDF5 signature and structure, the run it belongs to,
-the record naming its step, the positions' shape, dtype and finiteness, the checksums) and raises :class:`DamagedStep` saying what is wrong; :func:`damage_summary` puts
-the damaged steps of a run and what to do about them in one line.
+the record naming its step, the positions' shape, dtype and finiteness, the checksums) and
+raises :class:`DamagedStep` saying what is wrong; :func:`damage_summary` puts the damaged
+steps of a run and what to do about them in one line.
 """
 
 from __future__ import annotations
