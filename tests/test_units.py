@@ -145,3 +145,24 @@ def test_a_colloid_under_pressure_in_si_units_is_the_reduced_shell(tmp_path):
         deflate(icosphere(4, R=material.R), material, pressures=[200.0 * unit],
                 out=tmp_path / "x", locate=False, threads=1)
     assert not (tmp_path / "x").exists()
+
+
+def test_the_command_line_takes_a_materials_pressures_in_pascal(tmp_path):
+    """`--pressures` of a shell given by --E --sigma --d --R are in Pa: 50 kappa/R^3 in Pa is
+    accepted (it was refused against bounds in kappa/R^3) and gives the reduced shell's
+    volume; 2.3e6 Pa, above p_c = 1.26e6 Pa, is refused naming the option."""
+    from shellbuckle.cli import main
+
+    material = ShellParameters.from_material(E=1e8, sigma=0.5, d=2e-9, R=2e-8)
+    pascal = 50.0 * material.kappa / material.R ** 3
+    shell = ["deflate", "--E", "1e8", "--sigma", "0.5", "--d", "2e-9", "--R", "2e-8",
+             "--icosphere", "4", "--no-plot", "--no-locate", "--quiet", "--threads", "1"]
+    assert main([*shell, "--pressures", repr(pascal), "--out", str(tmp_path / "m")]) == 0
+    reduced = deflate(icosphere(4), ShellParameters.from_gamma(material.gamma, nu=material.nu),
+                      pressures=[50.0], out=tmp_path / "g", locate=False, threads=1)
+    from shellbuckle.run import Run
+
+    assert Run.open(tmp_path / "m").table["dV_over_V"].iloc[-1] == pytest.approx(
+        reduced.table["dV_over_V"].iloc[-1], rel=1e-9)
+    assert main([*shell, "--pressures", "2.3e6", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()
