@@ -114,7 +114,6 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
         raise TypeError(f"mesh must be a Mesh (shellbuckle.mesh.icosphere, random_sphere, "
                         f"read_mesh or Mesh.from_arrays), got {type(mesh).__name__}")
     check_mesh_fits(mesh, params, form_factors)
-    check_shell_options(mesh, params, c0=c0, pressures=pressures)
     options = dict(c0=c0, c0_cycle=c0_cycle, jiggle=jiggle, temperature=temperature, seed=seed,
                    bending=bending, method=method, tol=tol, max_iter=max_iter,
                    stop_at_contact=stop_at_contact, prerelax=prerelax,
@@ -133,10 +132,6 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                              "form_factors (Surface Evolver's rest metrics), not both")
         if shape_imperfection:
             _check_on_sphere(mesh)
-    if (schedule is not None or pressures is not None) and (dv is not None or until is not None):
-        given = "schedule" if schedule is not None else "pressures"
-        raise ValueError(f"give either {given} or dv and until (a schedule dv, 2 dv, ... up to "
-                         f"until), not both: dv = {dv!r}, until = {until!r} would be ignored")
     if pressures is not None:
         if schedule is not None:
             raise ValueError("give either a volume schedule or pressures, not both")
@@ -147,6 +142,10 @@ def deflate(mesh: Mesh | None = None, params: ShellParameters | None = None, *,
                                   **options)
     else:
         protocol = Protocol(schedule=tuple(np.atleast_1d(schedule)), **options)
+    check_shell_options(mesh, params, c0=c0, pressures=pressures)
+    listed = "schedule" if schedule is not None else (
+        "pressures" if pressures is not None else None)
+    _not_beside_targets(listed, dv, until)
     out = Path(out) if out is not None else default_out(params, seed)
     rest = None if form_factors is None else {"form_factors": np.asarray(form_factors, float)}
     def setup():
@@ -192,9 +191,7 @@ def continue_from(run, step: int, out, *, schedule=None, dv: float | None = None
     parent = Run.of(run)
     step = parent.step(step)
     start = float(parent.store.record(step)["dV_over_V"])
-    if schedule is not None and (dv is not None or until is not None):
-        raise ValueError(f"give either schedule or dv and until, not both: dv = {dv!r}, "
-                         f"until = {until!r} would be ignored")
+    _not_beside_targets("schedule" if schedule is not None else None, dv, until)
     if schedule is None:
         if dv is None or until is None:
             raise ValueError("give either schedule=[...] or both dv and until")
@@ -370,6 +367,15 @@ def solver_mode(threads: int | None) -> str:
     """PARDISO's mode for a new run on ``threads`` threads (default
     :func:`~shellbuckle.solve.linear.default_threads`): plain on one, reproducible on several."""
     return "reproducible" if check_mode(None, threads or default_threads()) else "plain"
+
+
+def _not_beside_targets(given: str | None, dv, until) -> None:
+    """ValueError if ``dv`` or ``until`` is given beside a list of targets (``given``: the
+    name of that list, ``schedule`` or ``pressures``; None: no list), which would ignore
+    them."""
+    if given is not None and (dv is not None or until is not None):
+        raise ValueError(f"give either {given} or dv and until (a schedule dv, 2 dv, ... up to "
+                         f"until), not both: dv = {dv!r}, until = {until!r} would be ignored")
 
 
 def check_max_steps(max_steps) -> None:
@@ -698,17 +704,14 @@ def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
     than the mesh's mean edge, an overpressure at or above the classical buckling pressure
     (the shell turns inside out) or below ``-gamma`` (it more than doubles its volume). A
     mesh that does not resolve the elastic length (:mod:`shellbuckle.resolution`) is only
-    warned about: a coarse mesh is a legitimate, if rough, model."""
+    warned about: a coarse mesh is a legitimate, if rough, model. ``c0`` and ``pressures`` are
+    numbers already (a :class:`Protocol` was built of them)."""
     from .resolution import gamma_resolved, vertices_needed
 
     n = mesh.n_vertices
     edges = mesh.X[mesh.topology.edges]
     mean = float(np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean())
     if c0 is not None:
-        if isinstance(c0, bool) or not isinstance(c0, (int, float, np.floating, np.integer)):
-            raise TypeError(f"c0 must be a number, got {type(c0).__name__} {c0!r}")
-        if not np.isfinite(c0):
-            raise ValueError(f"c0 = {c0!r}: allowed: a finite number (units 1/length)")
         if abs(c0) > 2.0 / mean:
             raise ValueError(f"c0 = {c0!r}: allowed |c0| <= {2.0 / mean:.4g} on this mesh (the "
                              f"preferred radius 2/|c0| must be at least its mean edge "

@@ -222,10 +222,19 @@ def _store(run_or_path):
 
 
 def _stored_step(store, k) -> int:
-    """Step ``k`` of ``store``, a negative ``k`` counted from the last finished step."""
+    """Step ``k`` of ``store``, a negative ``k`` counted from the last finished step
+    (ValueError for a ``k`` that is no integer or no finished step)."""
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+        raise ValueError(f"steps must be integers (step numbers, or negative counted from the "
+                         f"last), got {k!r}")
     steps = store.steps
-    k = int(k)
-    return steps[k] if -len(steps) <= k < 0 else k
+    if -len(steps) <= k < 0:
+        return steps[k]
+    if k not in steps:
+        raise ValueError(f"step {k} is not a finished step of run {store.path} (finished: "
+                         f"{len(steps)} steps, {steps[0] if steps else '-'}..."
+                         f"{steps[-1] if steps else '-'})")
+    return int(k)
 
 
 def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
@@ -235,26 +244,15 @@ def classify_run(run_or_path, steps=None, progress: bool = False) -> dict:
     classify (default all finished steps). Returns ``{step: Classification}``.
     """
     store = _store(run_or_path)
-    if steps is not None:
-        bad = [k for k in steps if isinstance(k, bool) or not isinstance(k, (int, np.integer))]
-        if bad:
-            raise ValueError(f"steps must be integers (step numbers, or negative counted from "
-                             f"the last), got {bad[0]!r}")
-        finished = store.steps
-        missing = [k for k in steps if not (k in finished or -len(finished) <= k < 0)]
-        if missing:
-            raise ValueError(f"step {missing[0]} is not a finished step of run {store.path} "
-                             f"(finished: {len(finished)} steps, "
-                             f"{finished[0] if finished else '-'}..."
-                             f"{finished[-1] if finished else '-'})")
-    steps = list(store.steps) if steps is None else [int(k) for k in steps]
+    steps = list(store.steps) if steps is None else list(steps)
+    stored = {k: _stored_step(store, k) for k in steps}  # each checked before any work
     analyzer = ShapeAnalyzer(store.faces, n_vertices=len(store.X0))
     iterator = steps
     if progress:
         from tqdm.auto import tqdm
 
         iterator = tqdm(steps, unit="step", desc="analysis", dynamic_ncols=True)
-    return {k: classify_descriptors(analyzer.describe(store.positions(_stored_step(store, k))))
+    return {k: classify_descriptors(analyzer.describe(store.positions(stored[k])))
             for k in iterator}
 
 

@@ -571,12 +571,12 @@ def run_folder(option: str, path, *, mesh: bool = True, params: bool = True):
         from ..run import Run
 
         run = Run.open(path)
-        if not mesh:  # run.json is still the run mesh.h5 was written for
-            run.store.check_owner()
         if mesh:
             run.store.check_mesh()
             if params:
                 run.params  # noqa: B018 -- raises naming run.json when it cannot be read
+        else:  # run.json is still the run mesh.h5 was written for
+            run.store.check_owner()
         return run
     except (ValueError, FileNotFoundError) as exc:
         message = str(exc)

@@ -117,19 +117,17 @@ class Protocol:
         where a number or an integer is meant (``seed=True`` was stored as ``true``)."""
         import numbers
 
-        for name in ("c0", "jiggle", "temperature", "tol", "fixed_dV_over_V", "smooth_jiggle",
-                     "shape_imperfection"):
+        # (an integer field given a fractional number: the ValueError of its range)
+        kinds = {name: "a number" for name in ("c0", "jiggle", "temperature", "tol",
+                                               "fixed_dV_over_V", "smooth_jiggle",
+                                               "shape_imperfection")}
+        kinds |= {name: "an integer" for name in ("seed", "max_iter", "smooth_degree",
+                                                  "shape_degree")}
+        for name, kind in kinds.items():
             value = getattr(self, name)
             if value is not None and (isinstance(value, (bool, np.bool_))
                                       or not isinstance(value, numbers.Real)):
-                raise TypeError(f"{name} must be a number, got {type(value).__name__} "
-                                f"{value!r}")
-        for name in ("seed", "max_iter", "smooth_degree", "shape_degree"):
-            value = getattr(self, name)  # (a fractional number: the ValueError of its range)
-            if value is not None and (isinstance(value, (bool, np.bool_))
-                                      or not isinstance(value, numbers.Real)):
-                raise TypeError(f"{name} must be an integer, got {type(value).__name__} "
-                                f"{value!r}")
+                raise TypeError(f"{name} must be {kind}, got {type(value).__name__} {value!r}")
         for name in ("c0_cycle", "stop_at_contact", "prerelax", "direct_return",
                      "relax_imperfection"):
             value = getattr(self, name)

@@ -40,10 +40,11 @@ Guarantees and how they are kept:
 - *A damaged step is named, never read as good.* A step file can still be damaged after it was
   written (a disk fault, a copy cut short, a hand edit): empty, truncated, junk, a broken
   record, positions whose bytes changed. Every step file is checked when it is read — it opens
-  as HDF5, its record parses and names its step, its positions have the run's shape, it names this
-  run and its content matches its checksums (step files written before the checksums were
-  introduced are read unchecked) — and a damaged one is left out of :attr:`RunStore.steps` and the table and
-  listed with what is wrong in :attr:`RunStore.damaged`; the good steps stay readable. Resuming
+  as HDF5, its record parses and names its step, its positions have the run's shape, it names
+  this run and its content matches its checksums (step files written before the checksums
+  were introduced are read unchecked) — and a damaged one is left out of
+  :attr:`RunStore.steps` and the table and listed with what is wrong in
+  :attr:`RunStore.damaged`; the good steps stay readable. Resuming
   sets damaged last steps aside (``step_....h5.damaged-<n>``) and computes them again; a
   damaged step followed by good ones stops the resume with the step to continue from.
 - *A lost run.json is rebuilt* from the copy in ``mesh.h5`` (the status and later sessions are
@@ -155,12 +156,10 @@ _MESHES_CHECKED: set[tuple] = set()
 def _description_owner(f) -> str | None:
     """The run id of the copy of run.json an open mesh.h5 holds (None if it holds no
     readable copy)."""
-    text = f.attrs.get(DESCRIPTION_ATTR)
-    if isinstance(text, bytes):
-        text = text.decode("utf-8", "replace")
     try:
+        text = _text_attribute(f, DESCRIPTION_ATTR)
         owner = json.loads(text).get("run_id") if isinstance(text, str) else None
-    except (json.JSONDecodeError, AttributeError):
+    except (ValueError, AttributeError):  # not UTF-8, not JSON, not an object
         owner = None
     return owner if isinstance(owner, str) else None
 
