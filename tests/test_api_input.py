@@ -205,6 +205,22 @@ def test_an_animation_refuses_bad_options_before_writing(run_dir, tmp_path, opti
     assert not (tmp_path / "a.gif").exists()
 
 
+@pytest.mark.parametrize("name, values", [
+    ("fps", (0, 1, 5, 60, 61)), ("dpi", (49, 50, 300, 1200, 1201)),
+])
+def test_an_animation_takes_the_values_the_command_line_takes(run_dir, tmp_path, name, values):
+    from shellbuckle.commands._checks import RANGES
+    from shellbuckle.commands.animate import FPS
+
+    cli = FPS if name == "fps" else RANGES["dpi"]
+    for value in values:
+        # no steps: a value the API takes goes on to the steps and is refused there
+        with pytest.raises(ValueError) as refused:
+            animate_run(run_dir, tmp_path / "a.gif", steps=[], **{name: value})
+        api_takes = "steps is empty" in str(refused.value)
+        assert api_takes == (cli.problem(value) is None), (name, value, str(refused.value))
+
+
 def test_transfer_refuses_zero_threads(run_dir):
     with pytest.raises(ValueError, match="threads must be an integer >= 1, got 0"):
         transfer(run_dir, -1, run_dir, threads=0)

@@ -30,6 +30,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..plots import limits as figure_limits
 from ..resolution import gamma_resolved, mean_edge, vertices_needed  # noqa: F401
 from ..store.names import refuse_store_file
 from ..util import interrupt_of
@@ -197,8 +198,9 @@ RANGES = {
     "path_increments": Range(1, MAX_STEPS, integer=True,
                              reason="each increment is a minimization and a stored step"),
     "sensitivity": Range(1, 100, integer=True, reason="each seed is a set of runs"),
-    "dpi": Range(50, 1200, integer=True, reason="below 50 nothing is legible; a figure at "
-                 "1200 dpi is already about 10000 pixels wide (hundreds of MB in memory)"),
+    "dpi": Range(*figure_limits.DPI, integer=True, reason="below 50 nothing is legible; a "
+                 "figure at 1200 dpi is already about 10000 pixels wide (hundreds of MB in "
+                 "memory)"),
     "at": Range(0, 1, high_open=True, reason="a dV/V"),
     "every": Range(1, MAX_STEPS, integer=True, reason="every K-th stored step"),
     "locate_tol": Range(1e-7, 0.1, reason="a width in dV/V: each halving is one more "

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..plots import limits as figure_limits
 from ._checks import Range, add_command, add_number, output_file, run_folder, the_work
 
 #: Frames per second of the animation.
-FPS = Range(1, 60, integer=True, reason="a frame per second at least; screens show at most 60")
+FPS = Range(*figure_limits.FPS, integer=True,
+            reason="a frame per second at least; screens show at most 60")
 
 
 def register(sub) -> None:

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import limits
+
 log = logging.getLogger(__name__)
 
 __all__ = ["FORMATS", "animate_run", "animation_frame", "frame_steps", "mp4_available"]
@@ -142,9 +144,9 @@ def animate_run(run, path, *, fps: int = 5, every: int | None = None, steps=None
 
     from ..store.names import refuse_store_file
 
-    _check_number("fps", fps, 1, 60, integer=True)  # the command line's --fps and --dpi
-    _check_number("dpi", dpi, 50, 1200, integer=True)
-    _check_number("size", size, 1.0, 40.0)
+    _check_number("fps", fps, *limits.FPS, integer=True)
+    _check_number("dpi", dpi, *limits.DPI, integer=True)
+    _check_number("size", size, *limits.FRAME_SIZE)
     path = Path(path)
     refuse_store_file(path)
     suffix = path.suffix.lower()
