@@ -96,6 +96,31 @@ def test_deflate_refuses_a_mesh_that_is_not_the_shell_before_any_folder(tmp_path
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.parametrize("R", [1.0, 2e-8])
+def test_the_api_and_the_command_line_draw_the_c0_limit_at_one_place(R):
+    from shellbuckle.commands._checks import check_c0
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.resolution import c0_limit
+    from shellbuckle.run import check_shell_options
+
+    mesh = random_sphere(500, seed=3)
+    mesh = mesh.with_positions(mesh.X * R)
+    params = ShellParameters(gamma=1000.0, R=R) if R == 1.0 else \
+        ShellParameters.from_material(E=1e8, sigma=1 / 3, d=2e-9, R=R)
+    limit = c0_limit(500, R)
+    for c0 in (0.0, 2.0 / R, limit * (1 - 1e-9), -limit * (1 - 1e-9), limit * (1 + 1e-9),
+               -limit * (1 + 1e-9), 10 * limit):
+        verdicts = []
+        for check in (lambda: check_c0("--c0", str(c0), c0, 500, R),
+                      lambda: check_shell_options(mesh, params, c0=c0)):
+            try:
+                check()
+                verdicts.append(True)
+            except ValueError:
+                verdicts.append(False)
+        assert verdicts[0] == verdicts[1] == (abs(c0) <= limit), (c0, limit, verdicts)
+
+
 @pytest.mark.parametrize("options, error, said", [
     (dict(form_factors=[[1.0, 2.0, 3.0]]), ValueError, "form_factors must have shape"),
     (dict(c0=1e4), ValueError, r"c0 = 10000.0: allowed \|c0\| <= "),

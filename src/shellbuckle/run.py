@@ -701,22 +701,20 @@ def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
                         pressures=None) -> None:
     """``ValueError`` for a spontaneous curvature or pressures the shell of ``params`` on
     ``mesh`` cannot take (the command line's rules): a preferred radius ``2/|c0|`` shorter
-    than the mesh's mean edge, an overpressure at or above the classical buckling pressure
+    than the mean edge of a sphere of as many vertices (:func:`~.resolution.c0_limit`; the
+    command line checks it before the mesh exists), an overpressure at or above the classical buckling pressure
     (the shell turns inside out) or below ``-gamma`` (it more than doubles its volume). A
     mesh that does not resolve the elastic length (:mod:`shellbuckle.resolution`) is only
     warned about: a coarse mesh is a legitimate, if rough, model. ``c0`` and ``pressures`` are
     numbers already (a :class:`Protocol` was built of them)."""
-    from .resolution import gamma_resolved, vertices_needed
+    from .resolution import c0_limit, gamma_resolved, mean_edge, vertices_needed
 
     n = mesh.n_vertices
-    edges = mesh.X[mesh.topology.edges]
-    mean = float(np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean())
-    if c0 is not None:
-        if abs(c0) > 2.0 / mean:
-            raise ValueError(f"c0 = {c0!r}: allowed |c0| <= {2.0 / mean:.4g} on this mesh (the "
-                             f"preferred radius 2/|c0| must be at least its mean edge "
-                             f"{mean:.3g}; c0 = 2/R = {2.0 / params.R:g} is the stress-free "
-                             "sphere)")
+    if c0 is not None and abs(c0) > c0_limit(n, params.R):
+        raise ValueError(f"c0 = {c0!r}: allowed |c0| <= {c0_limit(n, params.R):.4g} on {n} "
+                         f"vertices (the preferred radius 2/|c0| must be at least the mean "
+                         f"edge {mean_edge(n) * params.R:.3g} of a sphere of {n} vertices; "
+                         f"c0 = 2/R = {2.0 / params.R:g} is the stress-free sphere)")
     if pressures is not None:
         from .theory import pressure_bounds
 

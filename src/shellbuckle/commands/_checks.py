@@ -31,7 +31,7 @@ import warnings
 from pathlib import Path
 
 from ..plots import limits as figure_limits
-from ..resolution import gamma_resolved, mean_edge, vertices_needed  # noqa: F401
+from ..resolution import c0_limit, gamma_resolved, mean_edge, vertices_needed  # noqa: F401
 from ..store.names import refuse_store_file
 from ..util import interrupt_of
 
@@ -370,7 +370,7 @@ def check_mesh(option: str, text, gamma: float, n_vertices: int, *, gamma_effect
 
 def check_c0(option: str, text, c0: float, n_vertices: int, R: float = 1.0) -> None:
     """``ValueError`` when the preferred radius 2/|c0| is shorter than the mean edge."""
-    limit = 2.0 / (mean_edge(n_vertices) * R)
+    limit = c0_limit(n_vertices, R)
     if abs(c0) > limit:
         raise ValueError(f"{option} {_typed(text, c0)}: allowed |c0| <= {limit:.4g} on "
                          f"{n_vertices} vertices (the preferred radius 2/|c0| must be at least "
