@@ -535,18 +535,25 @@ def sweep_folder(option: str, path, spec, *, what: str = "a sweep") -> Path:
     or a sweep to resume or extend; never a run folder, a non-empty folder that is no sweep, or
     a sweep whose record has a run of ``spec``'s names with other parameters. ``what`` names the
     sweep in the refusal of a run folder. Checked before any work, writing nothing."""
-    from ..store.names import RUN_JSON
     from ..sweep import check_sweep
 
     folder = output_folder(option, path)
-    if (folder / RUN_JSON).exists():
-        raise ValueError(f"{option} {path}: is a run folder; {what} needs its own folder")
+    not_a_run_folder(option, path, folder, what)
     try:
         check_sweep(spec, folder)
     except ValueError as exc:  # the sweep's own refusal, which begins with the folder
         reason = str(exc).removeprefix(f"{folder} ")
         raise ValueError(f"{option} {path}: {reason}") from None
     return folder
+
+
+def not_a_run_folder(option: str, text, folder: Path, what: str) -> None:
+    """``ValueError`` when ``folder`` (given as ``text``) holds a run: ``what`` (a sweep, a
+    study) needs a folder of its own."""
+    from ..store.names import RUN_JSON
+
+    if (folder / RUN_JSON).exists():
+        raise ValueError(f"{option} {text}: is a run folder; {what} needs its own folder")
 
 
 def scheduler_address(option: str, text) -> None:

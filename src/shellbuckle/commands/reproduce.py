@@ -9,8 +9,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ._checks import (add_command, add_number, allowed, check_mesh, output_folder,
-                      scheduler_address, the_work)
+from ._checks import (add_command, add_number, allowed, check_mesh, not_a_run_folder,
+                      output_folder, scheduler_address, the_work)
 from ._options import add_convention_option, add_protocol_options, values
 
 
@@ -139,13 +139,10 @@ STUDY_MARKS = ("reproduction.json", "conventions.json", "sweep", "special", "pat
 
 def _check_out(out, comparison: bool) -> None:
     """A new folder, an empty one, or a previous study; never a run folder."""
-    from ..store.run import RUN_JSON
-
     path = output_folder("--out", out)
     if not path.exists():
         return
-    if (path / RUN_JSON).exists():
-        raise ValueError(f"--out {out}: is a run folder; a study needs its own folder")
+    not_a_run_folder("--out", out, path, "a study")
     if any(path.iterdir()) and not any((path / mark).exists() for mark in STUDY_MARKS):
         raise ValueError(f"--out {out}: is a non-empty folder that is not a previous study "
                          f"(none of {', '.join(STUDY_MARKS[:2])}, sweep/); give a new or empty "
