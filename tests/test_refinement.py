@@ -13,6 +13,8 @@ import logging
 import math
 import os
 import re
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -95,7 +97,9 @@ def test_a_sequence_whose_increments_barely_shrink_is_not_extrapolated(p):
 def test_two_finest_values_within_the_locations_bracket_are_equal():
     h = mean_edge([3594, 10000, 40000])
     q = [0.016143, 0.0162910156, 0.0162910157]  # the two finer in one bisection bracket
-    assert richardson(h, q).method == "not converged"  # no order fits a vanishing increment
+    # without a bracket: an increment that vanishes is faster than any order fits, converged
+    fit = richardson(h, q)
+    assert fit.method == "converged" and fit.value == q[-1] and fit.order == np.inf
     fit = richardson(h, q, resolution=7.4e-5)
     assert fit.method == "equal" and fit.value == q[-1]
     assert fit.describe() == "two finest meshes equal within 7.4e-05 (the location's bracket)"
@@ -848,6 +852,45 @@ def test_the_extrapolation_compares_the_seeds_that_every_mesh_has(study):
     assert primary["extrapolated"].iloc[0] == expected.value
     assert expected.value != alone.loc[("primary_dV_over_V", coarse), "extrapolated"]
     assert "each mesh's own seeds (none is on every mesh)" in refinement.markdown(table)
+
+
+def test_a_threshold_a_run_has_not_located_is_not_extrapolated(study, tmp_path):
+    runs = refinement.collect([study])
+    assert runs["primary_located"].all() and runs["wrinkles_located"].dtype == bool
+    fine = runs.loc[runs["n_vertices"].idxmax(), "path"]
+    copy = tmp_path / "unlocated"  # the finer run without its located events
+    shutil.copytree(study, copy, ignore=shutil.ignore_patterns("carried*"))
+    (copy / Path(fine).relative_to(study) / "located.json").unlink()
+    runs = refinement.collect([copy])
+    by_n = runs.set_index("n_vertices")
+    assert not by_n.loc[600, "primary_located"] and by_n.loc[300, "primary_located"]
+    step = Run.open(by_n.loc[600, "path"]).table
+    assert by_n.loc[600, "primary_dV_over_V"] in step["dV_over_V"].to_numpy()  # a step's end
+    table = refinement.refinement_table(runs)
+    primary = table[table["quantity"] == "primary_dV_over_V"]
+    assert (primary["method"] == "not located on every mesh (known to the volume step "
+                                 "only)").all()
+    assert primary["extrapolated"].isna().all() and primary["paper_mesh_error"].isna().all()
+    energies = table[table["quantity"] == refinement.energy_column(0.1)]
+    assert (energies["method"] == "order 2 assumed (2 meshes)").all()  # not a threshold
+
+
+def test_a_wrinkle_count_is_not_extrapolated(study):
+    runs = refinement.collect([study])
+    runs["W_mean"] = np.where(runs["n_vertices"] == 300, 5.0, 4.0)  # 5 folds, then 4
+    W = refinement.refinement_table(runs).query("quantity == 'W_mean'")
+    assert (W["method"] == "a count: not extrapolated").all()
+    assert W["extrapolated"].isna().all()
+    assert sorted(W["mean"]) == [4.0, 5.0]
+
+
+def test_two_runs_of_one_seed_on_one_mesh_are_refused(study):
+    runs = refinement.collect([study])
+    again = runs[runs["n_vertices"] == 300].assign(path="elsewhere/g271")
+    with pytest.raises(ValueError, match=r"two or more runs of seed 0 on 300 vertices "
+                                         r"\(helfrich, gamma = 271, .*elsewhere/g271; give the "
+                                         "folders of one study"):
+        refinement.refinement_table(pd.concat([runs, again], ignore_index=True))
 
 
 def test_refine_carry_is_not_a_report_only_option(study, capsys):

@@ -27,11 +27,13 @@ class Extrapolation:
     was had: ``fitted`` (three meshes, monotone), ``assumed`` (:data:`ASSUMED_ORDER`, two
     meshes), ``equal`` (the two finest give the same value, to the resolution of a located
     threshold), ``not converged`` (value NaN:
-    three that are not monotone, or a fitted order outside [:data:`MIN_ORDER`,
-    :data:`MAX_ORDER`]), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
+    three that are not monotone, or a fitted order below :data:`MIN_ORDER`), ``gap`` (value NaN: a mesh finer than one with the value lacks it),
     ``no value`` or ``one mesh`` (value NaN: the quantity is had on no mesh, or on one),
     ``to the finest`` (value NaN: an angle measured to the finest mesh, or a state carried to
-    it, nothing to extrapolate)."""
+    it, nothing to extrapolate), ``not located`` (value NaN: a threshold known on some mesh to
+    its volume step only, which no extrapolation can sharpen), ``count`` (value NaN: a count,
+    W, reported per mesh and not extrapolated), ``converged`` (the increments shrink faster
+    than at order :data:`MAX_ORDER`: the finest value is the limit)."""
 
     value: float
     order: float
@@ -60,6 +62,12 @@ class Extrapolation:
             return "not converged (no value on a finer mesh)"
         if self.method == "to the finest":
             return "measured to the finest mesh"
+        if self.method == "not located":
+            return "not located on every mesh (known to the volume step only)"
+        if self.method == "count":
+            return "a count: not extrapolated"
+        if self.method == "converged":
+            return f"converged (increments shrink faster than at order {MAX_ORDER:g})"
         return "not converged"
 
 
@@ -72,11 +80,16 @@ ONE_MESH = Extrapolation(math.nan, math.nan, math.nan, "one mesh")
 GAP = Extrapolation(math.nan, math.nan, math.nan, "gap")
 #: An angle measured to the finest mesh's dent axis: zero there by definition.
 TO_FINEST = Extrapolation(math.nan, math.nan, math.nan, "to the finest")
+#: A threshold that some mesh's run has not located (its value is a volume step's end).
+NOT_LOCATED = Extrapolation(math.nan, math.nan, math.nan, "not located")
+#: A count (W): the mean of integers over steps and seeds, not a smooth function of h.
+COUNT = Extrapolation(math.nan, math.nan, math.nan, "count")
 
 
 def _order(h, q) -> float | None:
     """The p with (q1 - q2)/(q2 - q3) = (h1^p - h2^p)/(h2^p - h3^p), h1 > h2 > h3, or None
-    when none lies in [MIN_ORDER, MAX_ORDER]. The right side grows monotonically with p."""
+    when none lies in [MIN_ORDER, MAX_ORDER]; ``math.inf`` when the increments shrink faster
+    than at MAX_ORDER. The right side grows monotonically with p."""
     from scipy.optimize import brentq
 
     (h1, h2, h3), (q1, q2, q3) = h, q
@@ -86,7 +99,9 @@ def _order(h, q) -> float | None:
         return math.log((h1 ** p - h2 ** p) / (h2 ** p - h3 ** p)) - target
 
     low, high = MIN_ORDER, MAX_ORDER
-    if gap(low) > 0 or gap(high) < 0:
+    if gap(high) < 0:
+        return math.inf
+    if gap(low) > 0:
         return None
     return float(brentq(gap, low, high, xtol=1e-14, rtol=1e-14))
 
@@ -100,7 +115,7 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
 
     NaN values of the coarsest meshes are left out and the finest meshes used: with three or
     more, the three finest fit ``q = q0 + c h^p`` exactly when the sequence is monotone (else:
-    not converged); with two, the order is ``assumed_order``:
+    not converged; a fitted order above :data:`MAX_ORDER`: converged at the finest value); with two, the order is ``assumed_order``:
     ``q0 = q2 + (q2 - q1) h2^p / (h1^p - h2^p)``. When two or more meshes have a value, a NaN
     on a mesh finer than the coarsest of them (an event seen on 3594 and 40000 vertices but not
     on 10000) gives :data:`GAP`. Meshes of unknown size are left out."""
@@ -127,6 +142,8 @@ def richardson(h, q, *, assumed_order: float = ASSUMED_ORDER,
         p = _order(h, q)
         if p is None:
             return NOT_CONVERGED
+        if p == math.inf:
+            return Extrapolation(float(q[-1]), math.inf, 0.0, "converged")
         method = "fitted"
     else:
         p, method = float(assumed_order), "assumed"

@@ -45,7 +45,8 @@ def markdown(table: pd.DataFrame, *, n_runs: int | None = None) -> str:
              "with a value (the order fitted from the three finest when they are monotone, "
              "else not converged; with two meshes the order 2 assumed; the finest value where "
              "the two finest are equal within a located threshold's bracket; none where a "
-             "mesh between two with a value has none). Error of the paper's mesh: "
+             "mesh between two with a value has none, for a threshold a run has not located, "
+             "and for W, a count). Error of the paper's mesh: "
              f"q(N = {PAPER_VERTICES}) - q(h -> 0), and relative to |q(h -> 0)|. E/kappa and "
              "the rim harmonic (the largest harmonic m >= 2 of the dent's rim over the rim's "
              "radius: 0 for an axisymmetric dent) are interpolated linearly in dV/V between "
@@ -170,7 +171,8 @@ def figure(table: pd.DataFrame):
             rows = group[group["quantity"] == name].sort_values("h")
             if rows.empty:
                 continue
-            label = f"{key[0]}, gamma = {key[1]:g}"
+            label = f"{key[0]}, gamma = {key[1]:g}" + (
+                f", nu = {key[2]:g}, {key[3]}" if len(groups) > 1 else "")
             ax.errorbar(rows["h"], rows["mean"], yerr=rows["std"].fillna(0.0), marker="o",
                         ms=4, lw=1, color=colour, label=label, capsize=2)
             first = rows.iloc[0]

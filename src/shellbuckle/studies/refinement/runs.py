@@ -39,6 +39,15 @@ RESOLUTIONS = {"primary_dV_over_V": "primary_resolution",
                "wrinkles_dV_over_V": "wrinkles_resolution",
                "primary_branch_end_dV_over_V": "primary_branch_end_resolution"}
 IMPERFECT_BRANCH_END = "imperfect shell's branch end without jiggle dV/V"
+#: The located thresholds' flags (collect): True where the run's event was located by
+#: bisection, False where it is known to its volume step only.
+LOCATED = {"primary_dV_over_V": "primary_located",
+           "axisymmetry_loss_dV_over_V": "axisymmetry_loss_located",
+           "wrinkles_dV_over_V": "wrinkles_located",
+           "primary_branch_end_dV_over_V": "primary_located"}
+#: Quantities that count (wrinkles): their means over steps and seeds are reported per mesh
+#: and never extrapolated.
+COUNTS = ("W_mean",)
 #: Default shape imperfection of the study, in units of each shell's effective thickness: it
 #: lowered the buckling pressure to half the classical one at gamma = 2333
 #: (docs/mesh-convergence.md) and sets where the shell dents, the same material point on
@@ -260,13 +269,15 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
     ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
     was located before the branch was followed, or is no jump) and its bracket's width
-    ``primary_branch_end_resolution``, ``E_over_kappa_at_<a>``,
+    ``primary_branch_end_resolution``, per threshold ``<name>_located`` (:data:`LOCATED`:
+    located by bisection, or known to its volume step only), ``E_over_kappa_at_<a>``,
     ``rim_amplitude_at_<a>`` (:func:`rim_amplitude_at`) and
     ``dent_axis_at_<a>`` (:func:`dent_axis_at`, a tuple or None) for each ``a`` of
     ``energy_at_values``."""
     import pandas as pd
 
     from ...analysis.collect import collect_runs
+    from ...analysis.events import events
     from ...store.located import read_located
     from ...store.run import RunStore
 
@@ -276,7 +287,12 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     imperfections, energies, ends, end_widths = [], {a: [] for a in energy_at_values}, [], []
     axes = {a: [] for a in energy_at_values}
     rims = {a: [] for a in energy_at_values}
+    flags = {name: [] for name in dict.fromkeys(LOCATED.values())}
     for path in runs["path"]:
+        located = {f"{e.name.removesuffix('_buckling')}_located": e.located
+                   for e in events(path, table=tables[path])}
+        for name in flags:
+            flags[name].append(located.get(name, False))
         store = RunStore.open(path)
         meta = store.meta
         imperfections.append(_imperfection(meta.get("protocol", {}), meta.get("params")))
@@ -291,6 +307,8 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     runs["imperfection"] = imperfections
     runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
     runs["primary_branch_end_resolution"] = np.array(end_widths, dtype=float)
+    for name, values in flags.items():
+        runs[name] = np.array(values, dtype=bool)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
         runs[rim_column(a)] = rims[a]

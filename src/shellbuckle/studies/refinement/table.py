@@ -8,9 +8,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .extrapolation import TO_FINEST, richardson
-from .runs import (CARRIED_W, ENERGY_AT, PAPER_VERTICES, RESOLUTIONS, angle_column,
-                   axis_column, carried_columns, mean_edge, quantities)
+from .extrapolation import COUNT, NOT_LOCATED, TO_FINEST, richardson
+from .runs import (CARRIED_W, COUNTS, ENERGY_AT, LOCATED, PAPER_VERTICES, RESOLUTIONS,
+                   angle_column, axis_column, carried_columns, mean_edge, quantities)
 
 if TYPE_CHECKING:  # pandas is imported where a table is made: not to build the command line
     import pandas as pd
@@ -86,6 +86,47 @@ def _resolution(group: pd.DataFrame, quantity: str, sizes) -> float:
     return float(widths.max()) if len(widths) else 0.0
 
 
+def _all_located(group: pd.DataFrame, quantity: str) -> bool:
+    """Whether every run of ``group`` with a value of the threshold ``quantity`` located it
+    (True for the quantities that are no located threshold, and for tables collected before
+    the flags were)."""
+    flag = LOCATED.get(quantity)
+    if flag is None or flag not in group:
+        return True
+    valued = np.isfinite(group[quantity].to_numpy(dtype=float))
+    return bool(group.loc[valued, flag].astype(bool).all())
+
+
+def _extrapolation(chosen: pd.DataFrame, quantity: str, sizes, compared: dict):
+    """How ``quantity``'s means over ``chosen`` go to h -> 0 (:func:`richardson`), unless it
+    is measured to the finest mesh, a count, or a threshold not located on every mesh."""
+    if quantity.startswith(("dent_angle_at_", "carried_")):
+        return TO_FINEST
+    if quantity in COUNTS:
+        return COUNT
+    if not _all_located(chosen, quantity):
+        return NOT_LOCATED
+    resolution = _resolution(chosen, quantity, [n for n in sizes
+                                                if math.isfinite(compared[n][0])][-2:])
+    return richardson(mean_edge(sizes), [compared[n][0] for n in sizes], resolution=resolution)
+
+
+def _refuse_repeated_runs(runs: pd.DataFrame) -> None:
+    """ValueError where one group has two runs of one seed on one mesh (a run made again in
+    another folder, or a sweep extended with another protocol): the table would count them as
+    two seeds."""
+    key = [*GROUP, "n_vertices", "seed"]
+    repeated = runs[runs.duplicated(key, keep=False)]
+    if not repeated.empty:
+        first = repeated.sort_values(key).iloc[0]
+        paths = repeated.loc[(repeated[key] == first[key]).all(axis=1), "path"]
+        raise ValueError(f"two or more runs of seed {first['seed']} on {first['n_vertices']} "
+                         f"vertices ({first['energy_convention']}, gamma = "
+                         f"{first['gamma']:g}, {first['imperfection']}): "
+                         f"{', '.join(map(str, paths))}; give the folders of one study (each "
+                         "shell once per mesh and seed)")
+
+
 def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     """The refinement table (:data:`COLUMNS`) of :func:`collect`'s runs: per group
     (convention, gamma, nu, imperfection), quantity and mesh size N, the mean over seeds, its
@@ -95,12 +136,14 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
     quantity on every mesh (``compared_mean``, over ``extrapolation_seeds``,
     :func:`_compared_seeds`; :data:`OWN_SEEDS`, each mesh's mean over its own seeds, where no
     seed has), so that a seed run on some meshes only does not pass for a change with the
-    mesh."""
+    mesh. W (:data:`~.runs.COUNTS`) is not extrapolated, nor a threshold that a run has not
+    located. ValueError where a group has two runs of one seed on one mesh."""
     import pandas as pd
 
     rows = []
     if runs.empty:
         return pd.DataFrame(rows, columns=list(COLUMNS))
+    _refuse_repeated_runs(runs)
     for key, group in runs.groupby(GROUP, sort=True):
         sizes = sorted(group["n_vertices"].astype(int).unique())
         group = _with_angles(group, energy_at_values)
@@ -116,10 +159,7 @@ def refinement_table(runs: pd.DataFrame, energy_at_values=ENERGY_AT) -> pd.DataF
             chosen = group if seeds is None else group[group["seed"].isin(seeds)]
             compared = {n: _spread(chosen.loc[chosen["n_vertices"] == n, quantity]
                                    .to_numpy(dtype=float)) for n in sizes}
-            resolution = _resolution(chosen, quantity, [n for n in sizes
-                                                        if math.isfinite(compared[n][0])][-2:])
-            fit = TO_FINEST if quantity.startswith(("dent_angle_at_", "carried_")) else richardson(
-                mean_edge(sizes), [compared[n][0] for n in sizes], resolution=resolution)
+            fit = _extrapolation(chosen, quantity, sizes, compared)
             paper = compared.get(PAPER_VERTICES, (math.nan,))[0]
             error = paper - fit.value
             relative = error / abs(fit.value) if fit.value else math.nan
