@@ -618,6 +618,37 @@ def test_the_study_carries_each_coarse_state_to_the_finest_mesh_once(study, tmp_
     assert w_col not in set(pd.read_csv(out / refinement.CSV)["quantity"])
 
 
+def test_a_state_carried_from_runs_made_again_since_is_carried_again(study, tmp_path,
+                                                                     monkeypatch, caplog):
+    out = tmp_path / "study"
+    shutil.copytree(study, out)
+    kept = refinement.carry(out, at=0.019)
+    ((key, entry),) = kept.items()
+    runs = refinement.collect([out])
+    ids = {n: refinement.run_identity(p) for n, p in zip(runs["n_vertices"], runs["path"])}
+    assert (entry["source_id"], entry["target_id"]) == (ids[300], ids[600])
+    # the record says the state came from another run in the finest mesh's folder (a run made
+    # again there since): the report leaves it out, the next carry computes it again
+    path = out / refinement.CARRIED_JSON
+    data = json.loads(path.read_text())
+    data["carried"][key]["target_id"] = "0" * 32
+    data["carried"][key]["own_W"] = 7
+    path.write_text(json.dumps(data))
+    stale = refinement.read_carried(out)
+    with caplog.at_level(logging.WARNING):
+        assert refinement.with_carried(runs, stale, out, at=0.019) is runs
+    assert "carried from runs made again since" in caplog.text
+    again = refinement.carry(out, at=0.019)
+    assert again[key]["target_id"] == ids[600] and again[key]["own_W"] == 0
+    # an entry written before run ids were kept is taken as it is
+    del data["carried"][key]["source_id"], data["carried"][key]["target_id"]
+    path.write_text(json.dumps(data))
+    old = refinement.read_carried(out)
+    w_col, _ = refinement.carried_columns(0.019)
+    W = refinement.with_carried(runs, old, out, at=0.019).set_index("n_vertices")[w_col]
+    assert (W.loc[300], W.loc[600]) == (0, 7)
+
+
 @pytest.fixture(scope="module")
 def two_seeds(study, tmp_path_factory):
     import shutil

@@ -49,8 +49,8 @@ from .runs import (GAMMAS, CONVENTIONS, PAPER_VERTICES, VERTICES, ENERGY_AT, PAP
 from .extrapolation import (ASSUMED_ORDER, MIN_ORDER, MAX_ORDER, Extrapolation, NOT_CONVERGED,
                             NO_VALUE, ONE_MESH, GAP, TO_FINEST, richardson)
 from .table import (GROUP, COLUMNS, OWN_SEEDS, refinement_table)
-from .carried import (CARRIED_JSON, CARRIED_VERSION, read_carried, carry_pairs, carry,
-                      with_carried)
+from .carried import (CARRIED_JSON, CARRIED_VERSION, read_carried, run_identity, carry_pairs,
+                      carry, with_carried)
 from .output import (CSV, MARKDOWN, FIGURE, markdown, figure, write_report)
 from .study import (study_spec, study_folders, run_study, report)
 
@@ -62,6 +62,6 @@ __all__ = ["GAMMAS", "CONVENTIONS", "PAPER_VERTICES", "VERTICES", "ENERGY_AT",
            "branch_end", "branch_end_resolution", "collect", "ASSUMED_ORDER", "MIN_ORDER",
            "MAX_ORDER", "Extrapolation", "NOT_CONVERGED", "NO_VALUE", "ONE_MESH", "GAP",
            "TO_FINEST", "richardson", "GROUP", "COLUMNS", "OWN_SEEDS", "refinement_table",
-           "CARRIED_JSON", "CARRIED_VERSION", "read_carried", "carry_pairs", "carry",
-           "with_carried", "CSV", "MARKDOWN", "FIGURE", "markdown", "figure", "write_report",
+           "CARRIED_JSON", "CARRIED_VERSION", "read_carried", "run_identity", "carry_pairs",
+           "carry", "with_carried", "CSV", "MARKDOWN", "FIGURE", "markdown", "figure", "write_report",
            "study_spec", "study_folders", "run_study", "report"]

@@ -24,6 +24,33 @@ log = logging.getLogger(__name__)
 
 CARRIED_JSON, CARRIED_LOCK = "carried.json", ".carried.lock"
 CARRIED_VERSION = 1
+#: The run ids an entry keeps of its source and target runs (entries written before they
+#: were kept have none, and are taken as carried between the runs now in their folders).
+IDS = ("source_id", "target_id")
+
+
+def run_identity(path) -> str | None:
+    """The run id of the run folder ``path`` (``run.json``), None where it cannot be read: a
+    run made again in the same folder has another."""
+    import json
+
+    from ...store.names import RUN_JSON
+
+    try:
+        run_id = json.loads((Path(path) / RUN_JSON).read_text(encoding="utf-8")).get("run_id")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return None
+    return run_id if isinstance(run_id, str) else None
+
+
+def _ids(source, target) -> dict:
+    return {"source_id": run_identity(source), "target_id": run_identity(target)}
+
+
+def _same_runs(entry: dict, ids: dict) -> bool:
+    """Whether ``entry`` was carried between the runs whose ids are ``ids`` (:data:`IDS`);
+    an entry without ids is taken as such."""
+    return all(entry.get(f) is None or entry.get(f) == ids.get(f) for f in IDS)
 
 
 def _name(path, out) -> str:
@@ -81,6 +108,8 @@ def _entry_problem(entry) -> str | None:
             return f"no {field}"
     if not _is_number(entry.get("at")):
         return "no at"
+    if any(not isinstance(entry.get(f, ""), str) for f in IDS):
+        return "a run id that is no text"
     if "failed" in entry:
         return None
     if not isinstance(entry.get("certified"), bool) or not _is_number(entry.get("own_W")):
@@ -104,7 +133,7 @@ def _keep(out, key: str, entry: dict) -> dict:
     Path(out).mkdir(parents=True, exist_ok=True)
     with locked_update(Path(out), CARRIED_JSON, CARRIED_LOCK):
         carried = read_carried(out, strict=True)
-        if _done(carried, key) and "failed" in entry:
+        if _done(carried, key, entry) and "failed" in entry:
             return carried  # another process carried it meanwhile: its result stays
         carried[key] = entry
         text = json.dumps(json_safe({"version": CARRIED_VERSION, "carried": carried}),
@@ -113,9 +142,10 @@ def _keep(out, key: str, entry: dict) -> dict:
     return carried
 
 
-def _done(carried: dict, key: str) -> bool:
-    """Whether ``carried`` holds the state ``key`` carried (kept, and not as failed)."""
-    return key in carried and "failed" not in carried[key]
+def _done(carried: dict, key: str, ids: dict) -> bool:
+    """Whether ``carried`` holds the state ``key`` carried (kept, not as failed, and between
+    the runs of ``ids``: a run made again since is carried again)."""
+    return key in carried and "failed" not in carried[key] and _same_runs(carried[key], ids)
 
 
 def _finest_runs(runs: pd.DataFrame, vertices: int | None = None) -> dict:
@@ -282,7 +312,8 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
     if not paths:
         return carried
     pairs = [p for p in carry_pairs(collect(paths, ()), at, finest_vertices=finest_vertices)
-             if not _done(carried, _carry_key(_name(p[0], out), p[1], _name(p[2], out), at))]
+             if not _done(carried, _carry_key(_name(p[0], out), p[1], _name(p[2], out), at),
+                          _ids(p[0], p[2]))]
     bar = None
     if progress and pairs:
         from tqdm import tqdm
@@ -294,7 +325,7 @@ def carry(out, paths=None, *, at: float = CARRY_AT, threads: int | None = 1,
         with contextlib.closing(done):  # the workers stop with this loop, however it ends
             for (source, k, target), entry in done:
                 names = {"source": _name(source, out), "step": k,
-                         "target": _name(target, out), "at": at}
+                         "target": _name(target, out), "at": at} | _ids(source, target)
                 key = _carry_key(names["source"], k, names["target"], at)
                 if "failed" in entry:
                     log.warning("carrying %s failed: %s", key, entry["failed"])
@@ -312,18 +343,25 @@ def with_carried(runs: pd.DataFrame, carried: dict, out, at: float = CARRY_AT) -
     (:func:`read_carried` of the study folder ``out``) carried at ``at`` from a run of
     ``runs`` to the run of its seed on its group's finest mesh: a coarse run, the W of its
     state carried there and the relative energy in percent (no value where the carried
-    state is no certified minimum); the finest run, its own W and 0. Without such entries,
-    ``runs`` unchanged."""
+    state is no certified minimum); the finest run, its own W and 0. An entry carried
+    between runs made again since (other run ids) is left out, with a warning. Without such
+    entries, ``runs`` unchanged."""
     if not carried or runs.empty:
         return runs
     w_col, e_col = carried_columns(at)
     row_of = {_name(p, out): i for i, p in enumerate(runs["path"])}
+    id_of = {_name(p, out): run_identity(p) for p in runs["path"]}
     finest = {_name(p, out) for p in _finest_runs(runs).values()}
     W, dE = np.full(len(runs), np.nan), np.full(len(runs), np.nan)
     for entry in carried.values():
         source, target = entry.get("source"), entry.get("target")
         if (entry.get("at") != at or "failed" in entry or target not in finest
                 or source not in row_of or source == target):
+            continue
+        if not _same_runs(entry, {"source_id": id_of[source], "target_id": id_of[target]}):
+            log.warning("the state of %s step %s carried to %s was carried from runs made "
+                        "again since: left out of the report (carry it again)", source,
+                        entry.get("step"), target)
             continue
         i, j = row_of[source], row_of[target]
         if entry.get("certified"):
