@@ -3,6 +3,7 @@ that names the option and the value as typed; no file or folder is made."""
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import subprocess
@@ -240,6 +241,8 @@ CASES = [
     (["deflate", "--out", "{ro}/r"], "--out", "ro/r"),
     (["deflate", "--out", "{tmp}/missing/dir/r"], "--out", "missing/dir/r"),
     (["deflate", "--from", "{tmp}/nothing", "--out", "{tmp}/r"], "--from", "nothing"),
+    (["deflate", "--from", "{run}"], "--from", "run"),
+    (["deflate", "--from", "{run}", "--gamma", "300", "--out", "{tmp}/r"], "--gamma", "300"),
     (["deflate", "--from", "{run}", "--step", "99", "--out", "{tmp}/r"], "--step", "99"),
     (["deflate", "--from", "{run}", "--dv", "nan", "--out", "{tmp}/r"], "--dv", "nan"),
     (["deflate", "--from", "{run}", "--until", "1.5", "--out", "{tmp}/r"], "--until", "1.5"),
@@ -555,3 +558,20 @@ def test_the_smooth_degree_rule():
         assert 2 * math.pi / L >= 4 * mean_edge(n) > 2 * math.pi / (L + 1)
     assert degree_resolved(3594) >= DEFAULT_DEGREE  # the paper's mesh resolves the default
     assert degree_resolved(MAX_VERTICES) >= 400  # the largest degree allowed
+
+
+def test_a_sweeps_help_states_the_ranges_its_lists_are_checked_against():
+    from shellbuckle.commands._checks import RANGES
+    from shellbuckle.commands.sweep import SPANS
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    sweep = sub.choices["sweep"]
+    helps = {a.dest: " ".join((a.help or "").replace("%%", "%").split()) for a in sweep._actions}
+    flags = {"seeds": "seed"}  # --seeds fills the axis seed
+    checked = 0
+    for axis, span in SPANS.items():
+        text = helps.get(flags.get(axis, axis), "")
+        if "allowed: " in text:
+            assert f"allowed: {RANGES[span].explained()}" in text, (axis, text)
+            checked += 1
+    assert checked >= 10

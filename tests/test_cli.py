@@ -185,7 +185,7 @@ class _nothing:
 def test_deflate_from_refuses_a_new_shell(small_run, tmp_path, capsys, flag, value):
     assert main(["deflate", "--from", str(small_run.path), flag, value,
                  "--out", str(tmp_path / "x")]) == 2
-    assert f"{flag} cannot be combined with --from" in capsys.readouterr().err
+    assert f"{flag} {value}: cannot be combined with --from" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
 
 

@@ -130,6 +130,9 @@ class Range:
         return None
 
 
+#: Levels of an icosahedral sphere: its meshes of 42 to 998562 vertices.
+ICOSPHERE = (2, 316)
+
 _DV = ("dV/V steps smaller than 1e-4 take more than 10^4 steps to reach 1; above 0.5 one step "
        "takes half the volume")
 _DVV = "dV/V = 0.99 leaves 1% of the volume, -1 doubles it"
@@ -151,8 +154,9 @@ RANGES = {
     "vertices": Range(MIN_VERTICES, MAX_VERTICES, integer=True,
                       reason=f"a dent and its rim need about {MIN_VERTICES} vertices; above "
                              f"{MAX_VERTICES} a Newton step needs tens of GB of memory"),
-    "icosphere": Range(2, 316, integer=True,
-                       reason=f"10 N^2 + 2 vertices, from {MIN_VERTICES} to {MAX_VERTICES}"),
+    "icosphere": Range(*ICOSPHERE, integer=True,
+                       reason=f"10 N^2 + 2 vertices, from {10 * ICOSPHERE[0] ** 2 + 2} to "
+                              f"{10 * ICOSPHERE[1] ** 2 + 2}"),
     "seed": Range(0, 2 ** 32 - 1, integer=True, reason="a 32-bit random seed"),
     "seeds": Range(1, 100, integer=True, reason="each seed is a full study"),
     "dv": Range(1e-4, 0.5, reason=_DV),

@@ -286,11 +286,13 @@ def _as_continue(args):
 
     for name in NEW_SHELL:
         if getattr(args, name) is not None:
-            option = name.replace("_", "-")
-            raise ValueError(f"--{option} cannot be combined with --from: the run continues "
-                             "with the stored mesh, parameters and energy")
+            flag = "--" + name.replace("_", "-")
+            raise ValueError(f"{flag} {typed(args, flag, getattr(args, name))}: cannot be "
+                             "combined with --from: the run continues with the stored mesh, "
+                             "parameters and energy")
     if args.out is None:
-        raise ValueError("--from needs --out: the new run gets its own folder")
+        raise ValueError(f"--from {typed(args, '--from', args.from_run)}: needs --out: the "
+                         "new run gets its own folder")
     given = {name: getattr(args, name) for name in vars(args)}
     return argparse.Namespace(**given | {
         "dir": args.from_run, "dir_option": "--from", "gamma": None, "c0": None, "increments": None,

@@ -49,7 +49,8 @@ def register(sub) -> None:
     parser.add_argument("--icosphere", metavar="N,..",
                         help="icosahedral spheres of level N (10 N^2 + 2 vertices); "
                              + allowed("icosphere"))
-    add_protocol_options(parser, PROTOCOL, listed=True, flags={"seed": "--seeds"})
+    add_protocol_options(parser, PROTOCOL, listed=True, flags={"seed": "--seeds"},
+                         ranges={name: SPANS[name] for name in PROTOCOL if name in SPANS})
     add_protocol_options(parser, ("c0_cycle",))
     parser.add_argument("--smooth-jiggle", metavar="A,..",
                         help="comma-separated list of: rms amplitudes (units of R) of the smooth "
