@@ -24,8 +24,13 @@ with the c0 cycle, its zero-curvature stage and the return): its iterations, aft
 accepted steps (relaxation, quasi-Newton and Newton) it came within ``1e-5`` and ``1e-7`` of
 its final energy (relative), the turn of the dent's axis from its start to its end (in ``h``),
 and for every minimization after the first at the first one's c0 how far it ended from where
-the first did (the largest vertex distance, in ``h``, and the energy difference). No timing is
-printed (``bench_scaling.py`` times steps).
+the first did (the largest vertex distance, in ``h``, and the energy difference). Then where
+the first minimization moves the shell: the rms and largest vertex displacement (in ``h``),
+the share of the squared displacement in bands of the material angle from the dent axis, how
+far the dent's rim advanced and its depth grew (in ``h``, :func:`shellbuckle.analysis.classify`),
+and the turn about the dent axis that best maps the moving start vertices onto the end
+surface (0: the wrinkle pattern does not turn). No timing is printed (``bench_scaling.py``
+times steps).
 """
 
 from __future__ import annotations
@@ -90,6 +95,45 @@ def slides(run: Run, h: float) -> list[str]:
     return lines
 
 
+#: Bands of the material angle from the dent axis, degrees.
+BANDS = (0, 30, 60, 90, 180)
+
+
+def where(run: Run, start: np.ndarray, end: np.ndarray, h: float) -> list[str]:
+    """Where a minimization from ``start`` to ``end`` moves the shell (module docstring)."""
+    from scipy.spatial import cKDTree
+
+    from shellbuckle.protocol.imperfection import reference_directions
+
+    move = np.linalg.norm(end - start, axis=1)
+    a, b = classify(start, run.faces), classify(end, run.faces)
+    axis = dent_axis(run.store.X0, end)
+    angle = np.degrees(np.arccos(np.clip(reference_directions(run.store.X0) @ axis, -1, 1)))
+    share = np.histogram(angle, bins=BANDS, weights=move ** 2)[0] / (move ** 2).sum()
+    bands = ", ".join(f"{lo}-{hi} deg {100 * f:.0f} %"
+                      for lo, hi, f in zip(BANDS[:-1], BANDS[1:], share))
+    lines = [f"  the first minimization moves vertices by {np.sqrt((move ** 2).mean()) / h:.2f} h "
+             f"rms, {move.max() / h:.2f} h at most; squared displacement by angle from the "
+             f"dent axis: {bands}"]
+    if a.rim_radius is not None and b.rim_radius is not None:
+        lines.append(f"  rim radius {a.rim_radius:.4f} -> {b.rim_radius:.4f} "
+                     f"({(b.rim_radius - a.rim_radius) / h:+.2f} h), dent depth "
+                     f"{a.dent_depth:.4f} -> {b.dent_depth:.4f} "
+                     f"({(b.dent_depth - a.dent_depth) / h:+.2f} h)")
+    moving = move > 0.1 * h
+    centre, tree = end.mean(axis=0), cKDTree(end)
+    space_axis = np.asarray(b.dent_axis if b.dent_axis is not None else axis, dtype=float)
+    K = np.cross(np.eye(3), space_axis / np.linalg.norm(space_axis))  # K @ v = axis x v
+    turns = np.radians(np.arange(-10.0, 10.01, 0.5))
+    gaps = [tree.query((start[moving] - centre) @ (np.eye(3) + np.sin(t) * K
+                                                   + (1 - np.cos(t)) * K @ K).T + centre)[0].mean()
+            for t in turns]
+    lines.append(f"  best turn about the dent axis {np.degrees(turns[int(np.argmin(gaps))]):+.1f} deg "
+                 f"(moving vertices' mean gap to the end surface {min(gaps) / h:.3f} h; "
+                 f"unturned {gaps[len(turns) // 2] / h:.3f} h)")
+    return lines
+
+
 def replay(run: Run, k: int, h: float) -> list[str]:
     """The second table for step ``k``: each minimization of the step made again."""
     results = []
@@ -126,7 +170,7 @@ def replay(run: Run, k: int, h: float) -> list[str]:
                      f"minimum, energy {(result.fun - first_energy) / abs(first_energy):+.1e} "
                      f"relative")
         lines.append(line)
-    return lines
+    return lines + where(run, results[0][1], first.x, h)
 
 
 def main(argv=None) -> None:
