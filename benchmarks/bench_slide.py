@@ -106,6 +106,9 @@ def where(run: Run, start: np.ndarray, end: np.ndarray, h: float) -> list[str]:
     from shellbuckle.protocol.imperfection import reference_directions
 
     move = np.linalg.norm(end - start, axis=1)
+    if not (move > 0.1 * h).any():
+        return [f"  the first minimization moves no vertex by more than 0.1 h (at most "
+                f"{move.max() / h:.2g} h)"]
     a, b = classify(start, run.faces), classify(end, run.faces)
     axis = dent_axis(run.store.X0, end)
     angle = np.degrees(np.arccos(np.clip(reference_directions(run.store.X0) @ axis, -1, 1)))
@@ -115,7 +118,7 @@ def where(run: Run, start: np.ndarray, end: np.ndarray, h: float) -> list[str]:
     lines = [f"  the first minimization moves vertices by {np.sqrt((move ** 2).mean()) / h:.2f} h "
              f"rms, {move.max() / h:.2f} h at most; squared displacement by angle from the "
              f"dent axis: {bands}"]
-    if a.rim_radius is not None and b.rim_radius is not None:
+    if np.isfinite([a.rim_radius, b.rim_radius, a.dent_depth, b.dent_depth]).all():
         lines.append(f"  rim radius {a.rim_radius:.4f} -> {b.rim_radius:.4f} "
                      f"({(b.rim_radius - a.rim_radius) / h:+.2f} h), dent depth "
                      f"{a.dent_depth:.4f} -> {b.dent_depth:.4f} "
@@ -128,9 +131,10 @@ def where(run: Run, start: np.ndarray, end: np.ndarray, h: float) -> list[str]:
     gaps = [tree.query((start[moving] - centre) @ (np.eye(3) + np.sin(t) * K
                                                    + (1 - np.cos(t)) * K @ K).T + centre)[0].mean()
             for t in turns]
-    lines.append(f"  best turn about the dent axis {np.degrees(turns[int(np.argmin(gaps))]):+.1f} deg "
-                 f"(moving vertices' mean gap to the end surface {min(gaps) / h:.3f} h; "
-                 f"unturned {gaps[len(turns) // 2] / h:.3f} h)")
+    best = np.degrees(turns[int(np.argmin(gaps))])
+    lines.append(f"  best turn about the dent axis {best:+.1f} deg (moving vertices' mean gap to "
+                 f"the end surface {min(gaps) / h:.3f} h; unturned {gaps[len(turns) // 2] / h:.3f}"
+                 " h)")
     return lines
 
 

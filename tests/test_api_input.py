@@ -108,6 +108,9 @@ def test_the_api_and_the_command_line_draw_the_c0_limit_at_one_place(R):
     params = ShellParameters(gamma=1000.0, R=R) if R == 1.0 else \
         ShellParameters.from_material(E=1e8, sigma=1 / 3, d=2e-9, R=R)
     limit = c0_limit(500, R)
+    edges = mesh.X[mesh.topology.edges]  # the rule's edge is the mesh's own, to a few percent
+    own = np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).mean()
+    assert limit == pytest.approx(2.0 / own, rel=0.05)
     for c0 in (0.0, 2.0 / R, limit * (1 - 1e-9), -limit * (1 - 1e-9), limit * (1 + 1e-9),
                -limit * (1 + 1e-9), 10 * limit):
         verdicts = []

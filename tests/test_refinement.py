@@ -100,6 +100,9 @@ def test_two_finest_values_within_the_locations_bracket_are_equal():
     # without a bracket: an increment that vanishes is faster than any order fits, converged
     fit = richardson(h, q)
     assert fit.method == "converged" and fit.value == q[-1] and fit.order == np.inf
+    # meshes of nearly one size fit a high order to any sequence: equal increments are not
+    # converged
+    assert richardson(mean_edge([3594, 3700, 40000]), [1.0, 2.0, 3.0]).method == "not converged"
     fit = richardson(h, q, resolution=7.4e-5)
     assert fit.method == "equal" and fit.value == q[-1]
     assert fit.describe() == "two finest meshes equal within 7.4e-05 (the location's bracket)"
@@ -640,6 +643,10 @@ def test_a_state_carried_from_runs_made_again_since_is_carried_again(study, tmp_
     assert "carried from runs made again since" in caplog.text
     again = refinement.carry(out, at=0.019)
     assert again[key]["target_id"] == ids[600] and again[key]["own_W"] == 0
+    # a run whose id could not be read when it was carried: kept without one, read back
+    data["carried"][key]["target_id"] = None
+    path.write_text(json.dumps(data))
+    assert refinement.read_carried(out, strict=True)[key]["target_id"] is None
     # an entry written before run ids were kept is taken as it is
     del data["carried"][key]["source_id"], data["carried"][key]["target_id"]
     path.write_text(json.dumps(data))

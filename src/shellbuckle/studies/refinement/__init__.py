@@ -63,5 +63,5 @@ __all__ = ["GAMMAS", "CONVENTIONS", "PAPER_VERTICES", "VERTICES", "ENERGY_AT",
            "MAX_ORDER", "Extrapolation", "NOT_CONVERGED", "NO_VALUE", "ONE_MESH", "GAP",
            "TO_FINEST", "richardson", "GROUP", "COLUMNS", "OWN_SEEDS", "refinement_table",
            "CARRIED_JSON", "CARRIED_VERSION", "read_carried", "run_identity", "carry_pairs",
-           "carry", "with_carried", "CSV", "MARKDOWN", "FIGURE", "markdown", "figure", "write_report",
-           "study_spec", "study_folders", "run_study", "report"]
+           "carry", "with_carried", "CSV", "MARKDOWN", "FIGURE", "markdown", "figure",
+           "write_report", "study_spec", "study_folders", "run_study", "report"]

@@ -108,7 +108,7 @@ def _entry_problem(entry) -> str | None:
             return f"no {field}"
     if not _is_number(entry.get("at")):
         return "no at"
-    if any(not isinstance(entry.get(f, ""), str) for f in IDS):
+    if any(entry.get(f) is not None and not isinstance(entry[f], str) for f in IDS):
         return "a run id that is no text"
     if "failed" in entry:
         return None

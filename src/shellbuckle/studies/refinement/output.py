@@ -172,7 +172,8 @@ def figure(table: pd.DataFrame):
             if rows.empty:
                 continue
             label = f"{key[0]}, gamma = {key[1]:g}" + (
-                f", nu = {key[2]:g}, {key[3]}" if len(groups) > 1 else "")
+                f", nu = {key[2]:g}" if table["nu"].nunique() > 1 else "") + (
+                f", {key[3]}" if table["imperfection"].nunique() > 1 else "")
             ax.errorbar(rows["h"], rows["mean"], yerr=rows["std"].fillna(0.0), marker="o",
                         ms=4, lw=1, color=colour, label=label, capsize=2)
             first = rows.iloc[0]

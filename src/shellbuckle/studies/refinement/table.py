@@ -118,8 +118,8 @@ def _refuse_repeated_runs(runs: pd.DataFrame) -> None:
     key = [*GROUP, "n_vertices", "seed"]
     repeated = runs[runs.duplicated(key, keep=False)]
     if not repeated.empty:
-        first = repeated.sort_values(key).iloc[0]
-        paths = repeated.loc[(repeated[key] == first[key]).all(axis=1), "path"]
+        _, rows = next(iter(repeated.groupby(key, sort=True, dropna=False)))
+        first, paths = rows.iloc[0], rows["path"]
         raise ValueError(f"two or more runs of seed {first['seed']} on {first['n_vertices']} "
                          f"vertices ({first['energy_convention']}, gamma = "
                          f"{first['gamma']:g}, {first['imperfection']}): "
