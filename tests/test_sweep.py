@@ -238,6 +238,36 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
     assert again["outcome"] == "skipped" and _file_states(folder) == after
 
 
+def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(tmp_path):
+    import json
+
+    from shellbuckle.locate import pending
+    from shellbuckle.store.catalogue import read_attempts
+    from shellbuckle.store.located import read_located
+
+    (point,) = SweepSpec(gamma=1000, icosphere=4, until=0.15).points()
+    folder = tmp_path / point["name"]
+    assert run_point(point, tmp_path)["outcome"] == "finished"
+    whole = read_located(folder)
+    assert "primary_buckling" in whole and not pending(folder)
+    # killed during its location: finished, its located.json without the point
+    located = folder / "located.json"
+    data = json.loads(located.read_text())
+    del data["events"]["primary_buckling"]
+    located.write_text(json.dumps(data))
+    assert [e.name for e in pending(folder)] == ["primary_buckling"]
+    steps = {k: v for k, v in _file_states(folder).items() if k.startswith("steps")}
+    result = run_point(point, tmp_path)
+    assert result["outcome"] == "finished"
+    assert read_attempts(tmp_path, point["name"])[-1]["action"] == "locate"
+    again = read_located(folder)["primary_buckling"]
+    timing = ("wall_s", "cpu_s")  # the same point to the bit, in another time
+    assert {k: v for k, v in again.items() if k not in timing} == \
+        {k: v for k, v in whole["primary_buckling"].items() if k not in timing}
+    assert {k: v for k, v in _file_states(folder).items() if k.startswith("steps")} == steps
+    assert run_point(point, tmp_path)["outcome"] == "skipped"
+
+
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
                                                                       monkeypatch):
     # one gradient-descent iteration per minimization (no jiggle retries with it) and no c0

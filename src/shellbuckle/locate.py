@@ -146,19 +146,7 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     missing = [k for k in run.steps if not is_current(analysis.get(k))]
     if missing:  # the classes of the steps, stored: the events, the figure and the table use them
         analyze_run(run, steps=missing)
-    found = {e.name: e for e in run_events(run, located=False) if e.name in names}
-    stored = {} if again else read_located(run.path)
-    out, todo = {}, []
-    for name, event in found.items():
-        point = stored.get(name)
-        # (a point located before the old branch was followed, without "old_branch", is
-        # located again: its mechanism came from an extrapolation of the lowest eigenvalue)
-        if (point and point.get("step") == event.step and point.get("tol", 1.0) <= tol * 1.000001
-                and point.get("analysis_version") == ANALYSIS_VERSION and "old_branch" in point
-                and _ends_converged(point)):
-            out[name] = point
-        else:
-            todo.append(event)
+    out, todo = _kept_and_todo(run, {} if again else read_located(run.path), tol, names)
     if not todo:
         return out
     ctx = stored_context(run, threads)
@@ -167,6 +155,35 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
         write_located(run.path, {event.name: point})
         out[event.name] = point
     return out
+
+
+def _kept_and_todo(run: Run, stored: dict, tol: float, names) -> tuple[dict, list]:
+    """The located points of ``stored`` that stand for the run's events ``names``, and the
+    events still to locate (:func:`locate`)."""
+    out, todo = {}, []
+    for event in run_events(run, located=False):
+        if event.name not in names:
+            continue
+        point = stored.get(event.name)
+        # (a point located before the old branch was followed, without "old_branch", is
+        # located again: its mechanism came from an extrapolation of the lowest eigenvalue)
+        if (point and point.get("step") == event.step and point.get("tol", 1.0) <= tol * 1.000001
+                and point.get("analysis_version") == ANALYSIS_VERSION and "old_branch" in point
+                and _ends_converged(point)):
+            out[event.name] = point
+        else:
+            todo.append(event)
+    return out, todo
+
+
+def pending(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS) -> list:
+    """The events of a finished, analysed run that :func:`locate` would locate now (none for
+    a run that cannot be located): a location that was interrupted, or never made. Reads
+    only."""
+    run = Run.of(run_or_path)
+    if locatable(run) is not None:
+        return []
+    return _kept_and_todo(run, read_located(run.path, warn=False), check_tol(tol), names)[1]
 
 
 class StepFromStored:

@@ -50,7 +50,7 @@ from .protocol.spec import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (Catalogue, analysis_complete, check_sweep_folder, read_attempts,
                               record_attempt, write_sweep_file)
-from .util import now
+from .util import interrupt_of, now
 
 log = logging.getLogger(__name__)
 
@@ -527,9 +527,10 @@ def run_name(point: dict) -> str:
 
 def _run_state(folder: Path, analyze: bool) -> str:
     """``done`` (finished, and analysed when asked), ``analyze`` (finished, not analysed),
-    ``damaged`` (finished with a mesh.h5 that is not its run.json's: the catalogue lists it
-    as failed, and no new attempt can mend it), ``failed``, or ``todo`` (absent or
-    resumable). Reads only; never takes a lock."""
+    ``locate`` (finished and analysed, its events' location not finished: it was interrupted,
+    :func:`shellbuckle.locate.pending`), ``damaged`` (finished with a mesh.h5 that is not its
+    run.json's: the catalogue lists it as failed, and no new attempt can mend it),
+    ``failed``, or ``todo`` (absent or resumable). Reads only; never takes a lock."""
     from .store.run import RUN_JSON, RunStore
 
     if not (folder / RUN_JSON).exists():
@@ -545,6 +546,11 @@ def _run_state(folder: Path, analyze: bool) -> str:
             return "damaged"
         if analyze and _analysis_available() and not analysis_complete(store):
             return "analyze"
+        if analyze and _analysis_available() and analysis_complete(store):
+            from .locate import pending
+
+            if pending(folder):
+                return "locate"
         return "done"
     return "failed" if store.status == "failed" else "todo"
 
@@ -664,10 +670,12 @@ def _named_logs(name: str):
 def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     """Compute (or resume, or analyse) one run of a sweep; never raises for a failing run.
 
-    The run folder is ``out_dir/<name>``. A finished (and analysed) run is left untouched.
-    Returns ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of
-    ``skipped``, ``finished``, ``paused``, ``failed`` or ``analysis failed`` (the run is
-    finished, the classification of its steps raised; the next sweep retries it). The attempt
+    The run folder is ``out_dir/<name>``. A finished (analysed and located) run is left
+    untouched; a finished run whose location was interrupted is located. Returns ``{"name",
+    "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of ``skipped``,
+    ``finished``, ``paused``, ``failed``, ``analysis failed`` or ``location failed`` (the run
+    is finished, the classification of its steps or the location of its events raised; the
+    next sweep retries it). The attempt
     is logged in ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This
     is the Dask task of :func:`run_sweep`; it also runs on its own.
     """
@@ -682,7 +690,8 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     attempt = {"started": now(), "ended": None, "wall_s": None, "cpu_s": None,
                "host": socket.gethostname(),
                "pid": os.getpid(), "worker": _worker_name(),
-               "action": "analyze" if state == "analyze" else "deflate", "outcome": "running",
+               "action": state if state in ("analyze", "locate") else "deflate",
+               "outcome": "running",
                "status": None, "message": None}
     record_attempt(out_dir, name, attempt)
     tb = None
@@ -690,7 +699,7 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
         from .run import Run
 
         with _named_logs(name):
-            run = Run.open(folder) if state == "analyze" else _deflate(point, folder)
+            run = Run.open(folder) if state in ("analyze", "locate") else _deflate(point, folder)
         status, message = run.status, run.store.meta.get("message")
         outcome = "finished" if status == "finished" else "paused"
     except Exception as exc:  # recorded, the sweep goes on
@@ -704,6 +713,18 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
             analyze_run(run)
         except Exception as exc:  # the run stands; the next sweep retries the analysis
             outcome, message = "analysis failed", f"analysis: {type(exc).__name__}: {exc}"
+            tb = _traceback.format_exc()
+            log.warning("run %s: %s", name, message)
+    if outcome == "finished" and state in ("analyze", "locate") and analyze:
+        from .locate import locate
+
+        try:  # what an interrupted location left (deflate locates the runs it finishes)
+            with _named_logs(name):
+                locate(run)
+        except Exception as exc:  # the run stands; the next sweep locates it again
+            if interrupt_of(exc) is not None:
+                raise
+            outcome, message = "location failed", f"location: {type(exc).__name__}: {exc}"
             tb = _traceback.format_exc()
             log.warning("run %s: %s", name, message)
     attempt.update(ended=now(), wall_s=time.perf_counter() - t0,

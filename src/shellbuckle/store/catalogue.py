@@ -322,7 +322,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
     row.update(name=name, path=name, attempts=len(attempts),
                task_wall_s=float(sum(a.get("wall_s") or 0.0 for a in attempts)),
                task_cpu_s=float(sum(a.get("cpu_s") or 0.0 for a in attempts)))
-    if last.get("outcome") in ("failed", "analysis failed") and \
+    if last.get("outcome") in ("failed", "analysis failed", "location failed") and \
             traceback_path(out_dir, name).exists():
         row["traceback"] = str(Path(LOGS_DIR) / traceback_path(out_dir, name).name)
     meta = None
