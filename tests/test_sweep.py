@@ -268,6 +268,24 @@ def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sw
     assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 
+def test_a_record_of_located_events_that_cannot_be_read_fails_the_location_not_the_sweep(
+        tmp_path):
+    import json
+
+    from shellbuckle.store.catalogue import read_attempts
+
+    (point,) = SweepSpec(gamma=1000, icosphere=4, until=0.15).points()
+    assert run_point(point, tmp_path)["outcome"] == "finished"
+    located = tmp_path / point["name"] / "located.json"
+    data = json.loads(located.read_text())
+    data["events"]["primary_buckling"] = [1]  # whole JSON, not a located point
+    located.write_text(json.dumps(data))
+    result = run_point(point, tmp_path)
+    assert result["outcome"] == "location failed" and result["status"] == "finished"
+    assert "location: AttributeError" in result["message"]
+    assert read_attempts(tmp_path, point["name"])[-1]["outcome"] == "location failed"
+
+
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
                                                                       monkeypatch):
     # one gradient-descent iteration per minimization (no jiggle retries with it) and no c0

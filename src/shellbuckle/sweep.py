@@ -549,7 +549,10 @@ def _run_state(folder: Path, analyze: bool) -> str:
         if analyze and _analysis_available() and analysis_complete(store):
             from .locate import pending
 
-            if pending(folder):
+            try:
+                if pending(folder):
+                    return "locate"
+            except Exception:  # an unreadable record: the worker's locate says why, logged
                 return "locate"
         return "done"
     return "failed" if store.status == "failed" else "todo"
@@ -854,8 +857,8 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
                         "aside and the next sweep computes it anew", out_dir / p["name"])
             continue
         last = read_attempts(out_dir, p["name"])[-1:]
-        failed = state == "failed" or (last and last[0].get("outcome") == "failed"
-                                       and state != "done")
+        failed = state == "failed" or (last and last[0].get("outcome") in (
+            "failed", "location failed") and state != "done")
         if state == "done" or (failed and not retry_failed):
             continue
         todo.append(p)
