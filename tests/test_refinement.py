@@ -894,7 +894,7 @@ def test_the_extrapolation_compares_the_seeds_that_every_mesh_has(study):
 
 def test_a_threshold_a_run_has_not_located_is_not_extrapolated(study, tmp_path):
     runs = refinement.collect([study])
-    assert runs["primary_located"].all() and runs["wrinkles_located"].dtype == bool
+    assert runs["primary_located"].all() and pd.api.types.is_bool_dtype(runs["wrinkles_located"])
     fine = runs.loc[runs["n_vertices"].idxmax(), "path"]
     copy = tmp_path / "unlocated"  # the finer run without its located events
     shutil.copytree(study, copy, ignore=shutil.ignore_patterns("carried*"))

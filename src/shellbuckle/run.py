@@ -704,9 +704,9 @@ def check_shell_options(mesh: Mesh, params: ShellParameters, *, c0=None,
     than the mean edge of a sphere of as many vertices (:func:`~.resolution.c0_limit`; the
     command line checks it before the mesh exists), an overpressure at or above the classical
     buckling pressure (the shell turns inside out) or below ``-gamma`` (it more than doubles
-    its volume). A
-    mesh that does not resolve the elastic length (:mod:`shellbuckle.resolution`) is only
-    warned about: a coarse mesh is a legitimate, if rough, model. ``c0`` and ``pressures`` are
+    its volume). A mesh that does not resolve the elastic length
+    (:mod:`shellbuckle.resolution`) is only warned about: a coarse mesh is a legitimate, if
+    rough, model. ``c0`` and ``pressures`` are
     numbers already (a :class:`Protocol` was built of them)."""
     from .resolution import c0_limit, gamma_resolved, mean_edge, vertices_needed
 

@@ -544,9 +544,9 @@ def _run_state(folder: Path, analyze: bool) -> str:
             store.check_mesh()
         except ValueError:
             return "damaged"
-        if analyze and _analysis_available() and not analysis_complete(store):
-            return "analyze"
-        if analyze and _analysis_available() and analysis_complete(store):
+        if analyze and _analysis_available():
+            if not analysis_complete(store):
+                return "analyze"
             from .locate import pending
 
             try:
@@ -678,9 +678,9 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of ``skipped``,
     ``finished``, ``paused``, ``failed``, ``analysis failed`` or ``location failed`` (the run
     is finished, the classification of its steps or the location of its events raised; the
-    next sweep retries it). The attempt
-    is logged in ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This
-    is the Dask task of :func:`run_sweep`; it also runs on its own.
+    next sweep retries it). The attempt is logged in ``out_dir/logs/<name>.json`` (and the
+    traceback of a failure beside it). This is the Dask task of :func:`run_sweep`; it also runs
+    on its own.
     """
     out_dir = Path(out_dir)
     name = point["name"]

@@ -37,7 +37,8 @@ COLUMNS = ("path", "name", "parent", "gamma", "nu", "energy_convention", "seed",
            "message", "n_steps", "stop_dV_over_V", "stop_reason", "primary_dV_over_V",
            "primary_confirmed", "axisymmetry_loss_dV_over_V", "wrinkles_dV_over_V",
            "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
-           "located", "W_mean", "W_std", "W_steps", "final_shape", "analysis",
+           "located", "primary_located", "axisymmetry_loss_located", "wrinkles_located",
+           "W_mean", "W_std", "W_steps", "final_shape", "analysis",
            "converged_fraction", "wall_s")
 #: Runs whose minimizations converged at fewer steps than this are quenches, not deflations.
 MIN_CONVERGED_FRACTION = 0.5
@@ -247,6 +248,8 @@ def collect_run(folder, *, store_analysis: bool = False,
             row[f"{name}_resolution"] = found[name].resolution
     thresholds = [e for e in found.values() if e.name != "inertia_change"]
     row["located"] = bool(thresholds) and all(e.located for e in thresholds)
+    for name in ("primary_buckling", "axisymmetry_loss", "wrinkles"):
+        row[f"{name.removesuffix('_buckling')}_located"] = name in found and found[name].located
     avg = wrinkle_average(table, W_WINDOW)
     row.update(W_mean=avg.mean, W_std=avg.std, W_steps=avg.n)
     return row, table
@@ -258,7 +261,8 @@ _FLOATS = ("gamma", "nu", "jiggle", "temperature", "smooth_jiggle", "shape_imper
            "primary_resolution", "axisymmetry_loss_resolution", "wrinkles_resolution",
            "W_mean", "W_std", "converged_fraction", "wall_s")
 _INTS = ("seed", "n_vertices", "n_steps", "W_steps", "smooth_degree", "shape_degree")
-_BOOLS = ("c0_cycle", "primary_confirmed", "located")
+_BOOLS = ("c0_cycle", "primary_confirmed", "located", "primary_located",
+          "axisymmetry_loss_located", "wrinkles_located")
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:
@@ -285,8 +289,9 @@ def collect_runs(paths, *, store_analysis: bool = False, tables: dict | None = N
     ``axisymmetry_loss_dV_over_V``, ``wrinkles_dV_over_V`` (NaN where the event did not
     happen; the located values where the run has them, :mod:`shellbuckle.locate`, unless
     ``located`` is False), each with its ``<name>_resolution`` (the width in dV/V of the
-    interval it lies in: the volume step, or the located bracket) and ``located`` (every
-    threshold of the run located); ``W_mean``, ``W_std``, ``W_steps`` over the wrinkled steps with dV/V in
+    interval it lies in: the volume step, or the located bracket) and ``<name>_located``
+    (``primary_located``, ...: located by bisection; False where the event did not happen),
+    and ``located`` (every threshold of the run located); ``W_mean``, ``W_std``, ``W_steps`` over the wrinkled steps with dV/V in
     [0.53, 0.76]; ``final_shape``; ``analysis`` (``stored``, ``computed``, ``stored now``);
     ``wall_s`` (sum of the step wall times).
 

@@ -269,15 +269,15 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     :func:`~shellbuckle.analysis.collect.collect_runs`, ``imperfection`` (its description),
     ``primary_branch_end_dV_over_V`` (:data:`BRANCH_END`; NaN where the run's primary buckling
     was located before the branch was followed, or is no jump) and its bracket's width
-    ``primary_branch_end_resolution``, per threshold ``<name>_located`` (:data:`LOCATED`:
-    located by bisection, or known to its volume step only), ``E_over_kappa_at_<a>``,
+    ``primary_branch_end_resolution`` (and, from ``collect_runs``, per threshold
+    ``<name>_located``, :data:`LOCATED`: located by bisection, or known to its volume step
+    only), ``E_over_kappa_at_<a>``,
     ``rim_amplitude_at_<a>`` (:func:`rim_amplitude_at`) and
     ``dent_axis_at_<a>`` (:func:`dent_axis_at`, a tuple or None) for each ``a`` of
     ``energy_at_values``."""
     import pandas as pd
 
     from ...analysis.collect import collect_runs
-    from ...analysis.events import events
     from ...store.located import read_located
     from ...store.run import RunStore
 
@@ -287,12 +287,7 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     imperfections, energies, ends, end_widths = [], {a: [] for a in energy_at_values}, [], []
     axes = {a: [] for a in energy_at_values}
     rims = {a: [] for a in energy_at_values}
-    flags = {name: [] for name in dict.fromkeys(LOCATED.values())}
     for path in runs["path"]:
-        located = {f"{e.name.removesuffix('_buckling')}_located": e.located
-                   for e in events(path, table=tables[path])}
-        for name in flags:
-            flags[name].append(located.get(name, False))
         store = RunStore.open(path)
         meta = store.meta
         imperfections.append(_imperfection(meta.get("protocol", {}), meta.get("params")))
@@ -307,8 +302,6 @@ def collect(paths, energy_at_values=ENERGY_AT) -> pd.DataFrame:
     runs["imperfection"] = imperfections
     runs[next(iter(BRANCH_END))] = np.array(ends, dtype=float)
     runs["primary_branch_end_resolution"] = np.array(end_widths, dtype=float)
-    for name, values in flags.items():
-        runs[name] = np.array(values, dtype=bool)
     for a in energy_at_values:
         runs[energy_column(a)] = energies[a]
         runs[rim_column(a)] = rims[a]
