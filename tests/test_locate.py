@@ -518,6 +518,36 @@ def test_locate_command_takes_several_runs_and_study_folders(runs, tmp_path, cap
     assert "empty" in capsys.readouterr().err
 
 
+def test_locate_command_leaves_a_run_another_process_is_locating(runs, tmp_path, capsys):
+    import shutil
+
+    from shellbuckle.store.atomic import FileLock
+    from shellbuckle.store.names import LOCATING_LOCK
+
+    plain, found = runs
+    study = tmp_path / "study"
+    shutil.copytree(plain.path, study / "a")
+    shutil.copytree(plain.path, study / "b")
+    other = FileLock(study / "a" / LOCATING_LOCK)
+    assert other.acquire()
+    # one run: a failure of the work, with the reason, and nothing written
+    assert main(["locate", str(study / "a"), "--threads", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "another process is locating the events of" in err and len(err.splitlines()) == 1
+    assert not (study / "a" / LOCATED_JSON).exists()
+    # several: the busy one is named and left, the others located
+    assert main(["locate", str(study), "--threads", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "not located now: another process is locating" in out
+    assert not (study / "a" / LOCATED_JSON).exists()
+    assert located(study / "b")["primary_buckling"]["dV_over_V"] == \
+        located(found)["primary_buckling"]["dV_over_V"]
+    other.release()
+    assert main(["locate", str(study / "a"), "--threads", "1", "--json"]) == 0
+    assert located(study / "a")["primary_buckling"]["lo"] == \
+        located(study / "b")["primary_buckling"]["lo"]
+
+
 @pytest.mark.slow
 def test_the_sphere_branch_without_imperfection_ends_at_the_same_volume_on_two_meshes(
         tmp_path, params):

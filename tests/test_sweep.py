@@ -238,10 +238,16 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
     assert again["outcome"] == "skipped" and _file_states(folder) == after
 
 
-def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(tmp_path):
+def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(
+        tmp_path, monkeypatch):
     import json
 
-    from shellbuckle.locate import pending
+    from shellbuckle.locate import locate, pending
+    from shellbuckle.store import located as located_module
+    from shellbuckle.store.atomic import FileLock
+    from shellbuckle.store.located import LocationBusy
+    from shellbuckle.store.names import LOCATING_LOCK
+    from shellbuckle.sweep import LOCATING_ELSEWHERE
     from shellbuckle.store.catalogue import read_attempts
     from shellbuckle.store.located import read_located
 
@@ -257,6 +263,20 @@ def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sw
     located.write_text(json.dumps(data))
     assert [e.name for e in pending(folder)] == ["primary_buckling"]
     steps = {k: v for k, v in _file_states(folder).items() if k.startswith("steps")}
+    # while another process locates it, the sweep leaves it (and says why), and so does
+    # `locate`, whether the sweep sees the lock when it reads the run's state or only later
+    other = FileLock(folder / LOCATING_LOCK)
+    assert other.acquire()
+    kept = located.read_bytes()
+    for seen in (True, False):
+        monkeypatch.setattr(located_module, "locating_elsewhere", lambda f, seen=seen: seen)
+        busy = run_point(point, tmp_path)
+        assert busy["outcome"] == "skipped" and busy["message"] == LOCATING_ELSEWHERE
+        assert busy["status"] == "finished" and located.read_bytes() == kept
+    monkeypatch.undo()
+    with pytest.raises(LocationBusy, match="another process is locating"):
+        locate(folder)
+    other.release()
     result = run_point(point, tmp_path)
     assert result["outcome"] == "finished"
     assert read_attempts(tmp_path, point["name"])[-1]["action"] == "locate"
@@ -268,22 +288,62 @@ def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sw
     assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 
-def test_a_record_of_located_events_that_cannot_be_read_fails_the_location_not_the_sweep(
-        tmp_path):
+def test_a_damaged_record_of_located_events_is_located_again_by_the_next_sweep(tmp_path,
+                                                                               caplog):
     import json
 
-    from shellbuckle.store.catalogue import read_attempts
+    from shellbuckle.store.catalogue import run_row
+    from shellbuckle.store.located import read_located
+    from shellbuckle.store.run import RunStore
+
+    (point,) = SweepSpec(gamma=1000, icosphere=4, until=0.15).points()
+    assert run_point(point, tmp_path)["outcome"] == "finished"
+    located = tmp_path / point["name"] / "located.json"
+    whole = read_located(located.parent)["primary_buckling"]
+    data = json.loads(located.read_text())
+    data["events"]["primary_buckling"] = [1]  # whole JSON, not a located point
+    located.write_text(json.dumps(data))
+    with caplog.at_level("WARNING"):
+        assert read_located(located.parent) == {}
+    assert "primary_buckling are not located points" in caplog.text
+    row = run_row(tmp_path, point["name"], point)  # the catalogue reads past it
+    stepped = RunStore.open(located.parent).record(whole["step"])["dV_over_V"]
+    assert row["status"] == "finished" and row["primary_dV_over_V"] == stepped  # unlocated
+    assert run_point(point, tmp_path)["outcome"] == "finished"
+    again = read_located(located.parent)["primary_buckling"]
+    assert again["dV_over_V"] == whole["dV_over_V"]
+
+
+def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, monkeypatch):
+    import json
+
+    from shellbuckle import locate as locate_module
+    from shellbuckle.store.catalogue import read_attempts, run_row
 
     (point,) = SweepSpec(gamma=1000, icosphere=4, until=0.15).points()
     assert run_point(point, tmp_path)["outcome"] == "finished"
     located = tmp_path / point["name"] / "located.json"
     data = json.loads(located.read_text())
-    data["events"]["primary_buckling"] = [1]  # whole JSON, not a located point
+    del data["events"]["primary_buckling"]
     located.write_text(json.dumps(data))
+
+    def fails(*args, **kwargs):
+        raise FloatingPointError("a bisection that broke")
+
+    monkeypatch.setattr(locate_module, "_locate_event", fails)
     result = run_point(point, tmp_path)
     assert result["outcome"] == "location failed" and result["status"] == "finished"
-    assert "location: AttributeError" in result["message"]
-    assert read_attempts(tmp_path, point["name"])[-1]["outcome"] == "location failed"
+    assert "location: FloatingPointError: a bisection that broke" in result["message"]
+    attempt = read_attempts(tmp_path, point["name"])[-1]
+    assert attempt["outcome"] == "location failed" and attempt["action"] == "locate"
+    row = run_row(tmp_path, point["name"], point)  # the catalogue says it too
+    assert row["status"] == "finished" and row["stop_reason"] == "end of schedule"
+    assert row["message"].startswith("end of the schedule")
+    assert row["message"].endswith("location: FloatingPointError: a bisection that broke")
+    assert row["traceback"]
+    monkeypatch.undo()  # the next sweep locates it and the row is the run's own again
+    assert run_point(point, tmp_path)["outcome"] == "finished"
+    assert "location" not in run_row(tmp_path, point["name"], point)["message"]
 
 
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,

@@ -72,7 +72,7 @@ from .protocol import deflate as protocol_mod
 from .protocol.deflate import LeftDomain
 from .protocol.stored import stored_context
 from .solve.spectrum import lowest_eigenvalues
-from .store.located import LOCATE_TOL, read_located, write_located
+from .store.located import LOCATE_TOL, locating, read_located, write_located
 from .store.view import Run
 
 log = logging.getLogger(__name__)
@@ -134,7 +134,9 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     located in the folder at the same step, analysis version and a tolerance at least as fine,
     with its old branch followed, is kept unless ``again``. ``threads`` as in
     :func:`shellbuckle.run.deflate`; the run's PARDISO mode is used, so the location is
-    reproducible. A run that cannot be located (:func:`locatable`) gives ``{}``.
+    reproducible. A run that cannot be located (:func:`locatable`) gives ``{}``. One process
+    at a time locates a run: :class:`~shellbuckle.store.located.LocationBusy` if another is
+    locating it now (:func:`~shellbuckle.store.located.locating`).
     """
     tol = check_tol(tol)
     run = Run.of(run_or_path)
@@ -149,11 +151,14 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     out, todo = _kept_and_todo(run, {} if again else read_located(run.path), tol, names)
     if not todo:
         return out
-    ctx = stored_context(run, threads)
-    for event in sorted(todo, key=lambda e: e.step):
-        point = _locate_event(ctx, run, event, tol)
-        write_located(run.path, {event.name: point})
-        out[event.name] = point
+    with locating(run.path):
+        # read again under the lock: a process that held it may have located some just now
+        out, todo = _kept_and_todo(run, {} if again else read_located(run.path), tol, names)
+        ctx = stored_context(run, threads) if todo else None
+        for event in sorted(todo, key=lambda e: e.step):
+            point = _locate_event(ctx, run, event, tol)
+            write_located(run.path, {event.name: point})
+            out[event.name] = point
     return out
 
 

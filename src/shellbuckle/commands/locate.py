@@ -59,6 +59,7 @@ def _cmd(args) -> int:
 
     from ..analysis.collect import run_folders
     from ..locate import DEFAULT_TOL, locatable, locate
+    from ..store.located import LocationBusy
 
     runs = []
     for name in args.dir:
@@ -79,9 +80,15 @@ def _cmd(args) -> int:
             print(f"{run.path}: not located: {why}")
             continue
         with the_work():
-            found[str(run.path)] = points = locate(
-                run, tol=DEFAULT_TOL if args.tol is None else args.tol, threads=args.threads,
-                again=args.again)
+            try:
+                found[str(run.path)] = points = locate(
+                    run, tol=DEFAULT_TOL if args.tol is None else args.tol,
+                    threads=args.threads, again=args.again)
+            except LocationBusy as exc:
+                if len(runs) == 1:
+                    raise
+                print(f"{run.path}: not located now: {exc}")
+                continue
         if not args.json:
             from ._output import print_located
 

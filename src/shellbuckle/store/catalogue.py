@@ -31,7 +31,8 @@ Columns (:data:`COLUMNS`):
   ``bending``, ``method``, ``energy_convention``;
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
-  written or whose worker died; ``message``; ``stop_reason`` (``self-intersection`` or
+  written or whose worker died; ``message`` (the run's, and, where the last attempt's
+  analysis or location of a finished run failed, that failure's); ``stop_reason`` (``self-intersection`` or
   ``end of schedule`` for a finished run);
 - ``steps`` (last finished volume step; step 0 is the sphere), ``final_dV_over_V``;
 - ``pressure_drop_dV_over_V``: dV/V at the first step whose pressure (the Lagrange multiplier of
@@ -345,6 +346,9 @@ def run_row(out_dir, name: str, point: dict) -> dict:
             # the worker died (or the task failed outside deflate) after the folder was made
             row.update(status="failed", message=last.get("message"))
         row["stop_reason"] = stop_reason(row["status"], row["message"])
+        if last.get("outcome") in ("analysis failed", "location failed") and last.get("message"):
+            # the run stands; what failed after it is said where the sweep looks
+            row["message"] = "; ".join(m for m in (row["message"], last["message"]) if m)
         if not table.empty:
             row.update(steps=int(table["step"].iloc[-1]),
                        final_dV_over_V=float(table["dV_over_V"].iloc[-1]),

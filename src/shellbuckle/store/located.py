@@ -14,20 +14,22 @@ A version-1 file (whose bisection advanced its start, so that a barrier crossing
 point of its own grid) is ignored with a warning and replaced when the run is located again.
 
 It is replaced atomically under its own lock, one event at a time, so an interrupted location
-keeps the events already located. A file that cannot be read is reported and treated as absent
+keeps the events already located. One process at a time locates a run's events: it holds
+``.locating.lock`` while it does (:func:`locating`), and another finds the run busy. A file that cannot be read is reported and treated as absent
 (the location can be made again: it is derived from the stored steps).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 from collections.abc import Mapping
 from pathlib import Path
 
 from ..util import json_safe
-from .atomic import atomic_write_bytes, locked_update
-from .names import LOCATED_JSON, LOCATED_LOCK  # noqa: F401
+from .atomic import FileLock, atomic_write_bytes, locked_update
+from .names import LOCATED_JSON, LOCATED_LOCK, LOCATING_LOCK  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +40,8 @@ LOCATE_TOL = 1e-4
 
 def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
     """The located events of the run in ``folder``, ``{name: point}`` (empty if none, or if
-    the file is damaged or of an older version: a warning says so unless ``warn`` is False)."""
+    the file is damaged or of an older version; an entry that is not a point, a JSON object,
+    is left out: a warning says so unless ``warn`` is False)."""
     path = Path(folder) / LOCATED_JSON
     try:
         text = path.read_text(encoding="utf-8")
@@ -51,13 +54,19 @@ def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
                              "whose barrier crossings are not the protocol's thresholds")
         if data.get("version") != LOCATED_VERSION or not isinstance(data.get("events"), dict):
             raise ValueError(f"version {data.get('version')!r}, expected {LOCATED_VERSION}")
-        return dict(data["events"])
+        events = dict(data["events"])
     except (json.JSONDecodeError, UnicodeDecodeError, AttributeError, ValueError) as exc:
         if not warn:
             return {}
         log.warning("%s cannot be read (%s): the located events are ignored; "
                     "`shellbuckle locate %s` locates them again", path, exc, Path(folder))
         return {}
+    damaged = sorted(name for name, point in events.items() if not isinstance(point, dict))
+    if damaged and warn:
+        log.warning("%s: the entries %s are not located points: they are ignored; "
+                    "`shellbuckle locate %s` locates them again", path, ", ".join(damaged),
+                    Path(folder))
+    return {name: point for name, point in events.items() if name not in damaged}
 
 
 def write_located(folder, events: Mapping[str, Mapping]) -> None:
@@ -70,3 +79,29 @@ def write_located(folder, events: Mapping[str, Mapping]) -> None:
         text = json.dumps(json_safe({"version": LOCATED_VERSION, "events": merged}), indent=1,
                           allow_nan=False)
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
+
+
+class LocationBusy(RuntimeError):
+    """Another process is locating the events of this run (it holds its ``.locating.lock``)."""
+
+
+def locating_elsewhere(folder) -> bool:
+    """Whether another process (or lock object) is locating the events of the run in
+    ``folder`` now."""
+    return FileLock(Path(folder) / LOCATING_LOCK).is_held_elsewhere()
+
+
+@contextlib.contextmanager
+def locating(folder):
+    """Hold the run's location lock while the block locates its events; :class:`LocationBusy`
+    at once if another process holds it (a second sweep, or ``shellbuckle locate``, started
+    while a location runs: the two would make the same bisections at the same time)."""
+    lock = FileLock(Path(folder) / LOCATING_LOCK)
+    if not lock.acquire():
+        raise LocationBusy(f"another process is locating the events of {folder} (it holds "
+                           f"{Path(folder) / LOCATING_LOCK}); its points are stored as it "
+                           f"finds them")
+    try:
+        yield
+    finally:
+        lock.release()

@@ -14,11 +14,13 @@ RUN_JSON, MESH_H5, STEPS_DIR = "run.json", "mesh.h5", "steps"
 TABLE_CSV, ANALYSIS_JSON = "table.csv", "analysis.json"
 WRITER_LOCK, ANALYSIS_LOCK = ".lock", ".analysis.lock"
 LOCATED_JSON, LOCATED_LOCK = "located.json", ".located.lock"
+#: Held while a process locates the run's events (:func:`shellbuckle.locate.locate`).
+LOCATING_LOCK = ".locating.lock"
 SWEEP_JSON, CATALOGUE_CSV, LOGS_DIR = "sweep.json", "catalogue.csv", "logs"
 
 #: The files and folders a run folder keeps (a folder holding ``run.json``).
 RUN_FILES = (RUN_JSON, MESH_H5, STEPS_DIR, TABLE_CSV, ANALYSIS_JSON, WRITER_LOCK,
-             ANALYSIS_LOCK, LOCATED_JSON, LOCATED_LOCK)
+             ANALYSIS_LOCK, LOCATED_JSON, LOCATED_LOCK, LOCATING_LOCK)
 #: Those of a sweep folder (a folder holding ``sweep.json``).
 SWEEP_FILES = (SWEEP_JSON, CATALOGUE_CSV, LOGS_DIR)
 
