@@ -189,15 +189,18 @@ def test_deflate_from_refuses_a_new_shell(small_run, tmp_path, capsys, flag, val
     assert not (tmp_path / "x").exists()
 
 
-def test_a_deflation_without_figure_or_location_does_not_load_the_table_libraries(tmp_path):
+@pytest.mark.parametrize("quiet", [["--quiet"], []])
+def test_a_deflation_without_figure_or_location_does_not_load_the_table_libraries(tmp_path,
+                                                                                  quiet):
     # what a short run pays before its first step and after its last: the run is made and
-    # reported from its records, without pandas, matplotlib or the locator
+    # reported from its records, without pandas, matplotlib or the locator; its progress bar
+    # (each step's shape) without pandas either
     import subprocess
     import sys
 
     code = ("import sys; from shellbuckle.cli import main; "
             "code = main(['deflate', '--vertices', '200', '--gamma', '100', '--until', '0.019', "
-            "'--no-plot', '--no-locate', '--quiet', '--threads', '1', "
+            f"'--no-plot', '--no-locate', *{quiet!r}, '--threads', '1', "
             f"'--out', {str(tmp_path / 'r')!r}]); "
             "print(sorted(m for m in ('pandas', 'matplotlib', 'shellbuckle.locate') "
             "if m in sys.modules)); sys.exit(code)")
