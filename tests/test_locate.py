@@ -518,34 +518,37 @@ def test_locate_command_takes_several_runs_and_study_folders(runs, tmp_path, cap
     assert "empty" in capsys.readouterr().err
 
 
-def test_locate_command_leaves_a_run_another_process_is_locating(runs, tmp_path, capsys):
+def test_locate_command_waits_for_another_process_locating_the_run(runs, tmp_path, capsys,
+                                                                    caplog):
     import shutil
+    import threading
 
+    from shellbuckle.run import deflate as make_run
     from shellbuckle.store.atomic import FileLock
     from shellbuckle.store.names import LOCATING_LOCK
 
     plain, found = runs
     study = tmp_path / "study"
     shutil.copytree(plain.path, study / "a")
-    shutil.copytree(plain.path, study / "b")
+    # a run whose events cannot be located (a fixed budget of gradient steps): named on
+    # stderr, so that --json's stdout stays one JSON document
+    make_run(icosphere(3), plain.params, out=study / "gd", until=0.04, method="gd", max_iter=3,
+             c0_cycle=False, locate=False, threads=1, progress=False)
     other = FileLock(study / "a" / LOCATING_LOCK)
     assert other.acquire()
-    # one run: a failure of the work, with the reason, and nothing written
-    assert main(["locate", str(study / "a"), "--threads", "1"]) == 1
-    err = capsys.readouterr().err
-    assert "another process is locating the events of" in err and len(err.splitlines()) == 1
-    assert not (study / "a" / LOCATED_JSON).exists()
-    # several: the busy one is named and left, the others located
-    assert main(["locate", str(study), "--threads", "1"]) == 0
-    out = capsys.readouterr().out
-    assert "not located now: another process is locating" in out
-    assert not (study / "a" / LOCATED_JSON).exists()
-    assert located(study / "b")["primary_buckling"]["dV_over_V"] == \
-        located(found)["primary_buckling"]["dV_over_V"]
-    other.release()
-    assert main(["locate", str(study / "a"), "--threads", "1", "--json"]) == 0
+    releases = threading.Timer(1.0, other.release)
+    releases.start()
+    with caplog.at_level("WARNING"):
+        assert main(["locate", str(study), "--threads", "1", "--json"]) == 0
+    releases.join()
+    captured = capsys.readouterr()
+    assert "another process is locating the events of" in caplog.text
+    assert "waiting for it" in caplog.text
+    assert "gd: not located: its minimizer is 'gd'" in captured.err
+    out = json.loads(captured.out)
+    assert [Path(k).name for k in out] == ["a"]
     assert located(study / "a")["primary_buckling"]["lo"] == \
-        located(study / "b")["primary_buckling"]["lo"]
+        located(found)["primary_buckling"]["lo"]
 
 
 @pytest.mark.slow

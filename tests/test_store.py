@@ -518,3 +518,61 @@ def test_versions_name_the_source_commit_when_run_from_a_git_checkout():
     dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
                            text=True, check=True).stdout.strip()
     assert commit.endswith("+dirty") == bool(dirty)
+
+
+def test_asking_whether_a_lock_is_held_does_not_make_a_free_lock_look_held(tmp_path):
+    # asking takes the lock for a moment (flock has no test): a non-blocking acquire that
+    # meets such a probe from another process must not report the lock as held (a run's
+    # writer or location lock refused while nobody held it)
+    from shellbuckle.store.atomic import FileLock
+
+    path = tmp_path / ".lock"
+    path.touch()
+    asking = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
+        import time
+        from shellbuckle.store.atomic import FileLock
+        probe, end = FileLock({str(path)!r}), time.monotonic() + 4
+        print("asking", flush=True)
+        while time.monotonic() < end:
+            probe.is_held_elsewhere()
+        """)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert asking.stdout.readline().strip() == "asking"
+        refused, end = 0, time.monotonic() + 2
+        while time.monotonic() < end:
+            lock = FileLock(path)
+            if lock.acquire():
+                lock.release()
+            else:
+                refused += 1
+    finally:
+        asking.wait(timeout=60)
+    assert refused == 0
+    holder = FileLock(path)  # a real holder is seen, and keeps the lock from others
+    assert holder.acquire() and FileLock(path).is_held_elsewhere()
+    assert not FileLock(path).acquire()
+    holder.release()
+    assert not FileLock(path).is_held_elsewhere()
+
+
+def test_an_analysis_entry_that_is_not_an_analysis_is_left_out_and_made_again(tmp_path, caplog):
+    from shellbuckle.analysis import analyze_run
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import analysis_complete
+
+    run = deflate(icosphere(3), ShellParameters.from_gamma(271), until=0.04, out=tmp_path / "r",
+                  locate=False, progress=False, threads=1)
+    analyze_run(run)
+    store = RunStore.open(run.path)
+    whole = store.analysis()
+    data = json.loads((run.path / "analysis.json").read_text())
+    data["1"] = [1]  # whole JSON, not the analysis of a step
+    (run.path / "analysis.json").write_text(json.dumps(data))
+    with caplog.at_level("WARNING"):
+        assert sorted(store.analysis()) == [0, 2]
+    assert "the entries of steps 1 are not analyses" in caplog.text
+    assert len(store.table()) == 3 and not analysis_complete(store)  # read past it
+    analyze_run(run)  # made again, the same classification
+    assert store.analysis()[1] == whole[1] and analysis_complete(store)

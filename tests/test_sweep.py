@@ -238,16 +238,14 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
     assert again["outcome"] == "skipped" and _file_states(folder) == after
 
 
-def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(
-        tmp_path, monkeypatch):
+def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(tmp_path):
     import json
+    import threading
+    import time
 
-    from shellbuckle.locate import locate, pending
-    from shellbuckle.store import located as located_module
+    from shellbuckle.locate import pending
     from shellbuckle.store.atomic import FileLock
-    from shellbuckle.store.located import LocationBusy
     from shellbuckle.store.names import LOCATING_LOCK
-    from shellbuckle.sweep import LOCATING_ELSEWHERE
     from shellbuckle.store.catalogue import read_attempts
     from shellbuckle.store.located import read_located
 
@@ -263,21 +261,19 @@ def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sw
     located.write_text(json.dumps(data))
     assert [e.name for e in pending(folder)] == ["primary_buckling"]
     steps = {k: v for k, v in _file_states(folder).items() if k.startswith("steps")}
-    # while another process locates it, the sweep leaves it (and says why), and so does
-    # `locate`, whether the sweep sees the lock when it reads the run's state or only later
+    # while another process locates it, the sweep's task waits for it (and locates what that
+    # one leaves)
     other = FileLock(folder / LOCATING_LOCK)
     assert other.acquire()
     kept = located.read_bytes()
-    for seen in (True, False):
-        monkeypatch.setattr(located_module, "locating_elsewhere", lambda f, seen=seen: seen)
-        busy = run_point(point, tmp_path)
-        assert busy["outcome"] == "skipped" and busy["message"] == LOCATING_ELSEWHERE
-        assert busy["status"] == "finished" and located.read_bytes() == kept
-    monkeypatch.undo()
-    with pytest.raises(LocationBusy, match="another process is locating"):
-        locate(folder)
+    results = []
+    task = threading.Thread(target=lambda: results.append(run_point(point, tmp_path)))
+    task.start()
+    time.sleep(1.0)
+    assert task.is_alive() and located.read_bytes() == kept
     other.release()
-    result = run_point(point, tmp_path)
+    task.join()
+    (result,) = results
     assert result["outcome"] == "finished"
     assert read_attempts(tmp_path, point["name"])[-1]["action"] == "locate"
     again = read_located(folder)["primary_buckling"]
@@ -302,10 +298,11 @@ def test_a_damaged_record_of_located_events_is_located_again_by_the_next_sweep(t
     whole = read_located(located.parent)["primary_buckling"]
     data = json.loads(located.read_text())
     data["events"]["primary_buckling"] = [1]  # whole JSON, not a located point
+    data["events"]["axisymmetry_loss"] = {"step": 3, "complete": True}  # a point cut short
     located.write_text(json.dumps(data))
     with caplog.at_level("WARNING"):
         assert read_located(located.parent) == {}
-    assert "primary_buckling are not located points" in caplog.text
+    assert "axisymmetry_loss, primary_buckling are not located points" in caplog.text
     row = run_row(tmp_path, point["name"], point)  # the catalogue reads past it
     stepped = RunStore.open(located.parent).record(whole["step"])["dV_over_V"]
     assert row["status"] == "finished" and row["primary_dV_over_V"] == stepped  # unlocated
@@ -341,9 +338,11 @@ def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, 
     assert row["message"].startswith("end of the schedule")
     assert row["message"].endswith("location: FloatingPointError: a bisection that broke")
     assert row["traceback"]
-    monkeypatch.undo()  # the next sweep locates it and the row is the run's own again
-    assert run_point(point, tmp_path)["outcome"] == "finished"
-    assert "location" not in run_row(tmp_path, point["name"], point)["message"]
+    monkeypatch.undo()  # located outside the sweep: the row is the run's own again
+    locate_module.locate(tmp_path / point["name"])
+    row = run_row(tmp_path, point["name"], point)
+    assert "location" not in row["message"] and row["traceback"] is None
+    assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,

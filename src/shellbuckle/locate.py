@@ -135,8 +135,8 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
     with its old branch followed, is kept unless ``again``. ``threads`` as in
     :func:`shellbuckle.run.deflate`; the run's PARDISO mode is used, so the location is
     reproducible. A run that cannot be located (:func:`locatable`) gives ``{}``. One process
-    at a time locates a run: :class:`~shellbuckle.store.located.LocationBusy` if another is
-    locating it now (:func:`~shellbuckle.store.located.locating`).
+    at a time locates a run: this one waits while another is locating it, then keeps what
+    that one stored (:func:`~shellbuckle.store.located.locating`).
     """
     tol = check_tol(tol)
     run = Run.of(run_or_path)
@@ -153,7 +153,8 @@ def locate(run_or_path, *, tol: float = DEFAULT_TOL, names=LOCATED_EVENTS,
         return out
     with locating(run.path):
         # read again under the lock: a process that held it may have located some just now
-        out, todo = _kept_and_todo(run, {} if again else read_located(run.path), tol, names)
+        stored = {} if again else read_located(run.path, warn=False)  # warned above
+        out, todo = _kept_and_todo(run, stored, tol, names)
         ctx = stored_context(run, threads) if todo else None
         for event in sorted(todo, key=lambda e: e.step):
             point = _locate_event(ctx, run, event, tol)

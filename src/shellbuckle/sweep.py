@@ -528,8 +528,7 @@ def run_name(point: dict) -> str:
 def _run_state(folder: Path, analyze: bool) -> str:
     """``done`` (finished, and analysed when asked), ``analyze`` (finished, not analysed),
     ``locate`` (finished and analysed, its events' location not finished: it was interrupted,
-    :func:`shellbuckle.locate.pending`), ``locating elsewhere`` (the same, while another
-    process locates them: :func:`shellbuckle.store.located.locating`), ``damaged`` (finished with a mesh.h5 that is not its
+    :func:`shellbuckle.locate.pending`), ``damaged`` (finished with a mesh.h5 that is not its
     run.json's: the catalogue lists it as failed, and no new attempt can mend it),
     ``failed``, or ``todo`` (absent or resumable). Reads only; never takes a lock."""
     from .store.run import RUN_JSON, RunStore
@@ -549,14 +548,12 @@ def _run_state(folder: Path, analyze: bool) -> str:
             if not analysis_complete(store):
                 return "analyze"
             from .locate import pending
-            from .store.located import locating_elsewhere
 
             try:
-                todo = bool(pending(folder))
+                if pending(folder):
+                    return "locate"
             except Exception:  # an unreadable record: the worker's locate says why, logged
-                todo = True
-            if todo:
-                return "locating elsewhere" if locating_elsewhere(folder) else "locate"
+                return "locate"
         return "done"
     return "failed" if store.status == "failed" else "todo"
 
@@ -673,17 +670,13 @@ def _named_logs(name: str):
                     logger.removeHandler(_label_handler.pop())
 
 
-#: The message of a run skipped because another process is locating its events.
-LOCATING_ELSEWHERE = "its events are being located by another process"
-
-
 def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     """Compute (or resume, or analyse) one run of a sweep; never raises for a failing run.
 
     The run folder is ``out_dir/<name>``. A finished (analysed and located) run is left
-    untouched; a finished run whose location was interrupted is located (skipped, with
-    :data:`LOCATING_ELSEWHERE`, while another process locates it). Returns ``{"name",
-    "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of ``skipped``,
+    untouched; a finished run whose location was interrupted is located (after another
+    process that is locating it now, if any: the points it stored are kept). Returns
+    ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of ``skipped``,
     ``finished``, ``paused``, ``failed``, ``analysis failed`` or ``location failed`` (the run
     is finished, the classification of its steps or the location of its events raised; the
     next sweep retries it). The attempt is logged in ``out_dir/logs/<name>.json`` (and the
@@ -694,9 +687,9 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     name = point["name"]
     folder = out_dir / name
     state = _run_state(folder, analyze)
-    if state in ("done", "locating elsewhere"):
-        return {"name": name, "outcome": "skipped", "status": "finished",
-                "message": None if state == "done" else LOCATING_ELSEWHERE, "wall_s": 0.0}
+    if state == "done":
+        return {"name": name, "outcome": "skipped", "status": "finished", "message": None,
+                "wall_s": 0.0}
     t0, cpu0 = time.perf_counter(), time.process_time()
     attempt = {"started": now(), "ended": None, "wall_s": None, "cpu_s": None,
                "host": socket.gethostname(),
@@ -729,13 +722,10 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     if outcome == "finished" and state in ("analyze", "locate") and analyze:
         from .locate import locate
 
-        from .store.located import LocationBusy
-
-        try:  # what an interrupted location left (deflate locates the runs it finishes)
+        try:  # what an interrupted location left (deflate locates the runs it finishes);
+            # while another process locates it, this waits and keeps what that one stored
             with _named_logs(name):
                 locate(run)
-        except LocationBusy:  # another process took it since the state was read
-            outcome, message = "skipped", LOCATING_ELSEWHERE
         except Exception as exc:  # the run stands; the next sweep locates it again
             if interrupt_of(exc) is not None:
                 raise

@@ -55,11 +55,11 @@ def locate_arguments(args) -> dict:
 
 
 def _cmd(args) -> int:
+    import sys
     from pathlib import Path
 
     from ..analysis.collect import run_folders
     from ..locate import DEFAULT_TOL, locatable, locate
-    from ..store.located import LocationBusy
 
     runs = []
     for name in args.dir:
@@ -77,18 +77,12 @@ def _cmd(args) -> int:
     for run in runs:
         why = locatable(run)
         if why is not None:
-            print(f"{run.path}: not located: {why}")
+            print(f"{run.path}: not located: {why}", file=sys.stderr)  # stdout: the results
             continue
         with the_work():
-            try:
-                found[str(run.path)] = points = locate(
-                    run, tol=DEFAULT_TOL if args.tol is None else args.tol,
-                    threads=args.threads, again=args.again)
-            except LocationBusy as exc:
-                if len(runs) == 1:
-                    raise
-                print(f"{run.path}: not located now: {exc}")
-                continue
+            found[str(run.path)] = points = locate(
+                run, tol=DEFAULT_TOL if args.tol is None else args.tol, threads=args.threads,
+                again=args.again)
         if not args.json:
             from ._output import print_located
 

@@ -11,6 +11,10 @@ removes them when it next takes its lock (:func:`remove_temporaries`).
 Locks are ``flock`` advisory locks on a small lock file; the kernel drops them when the holding
 process dies, however it dies, so a killed run never leaves a stale lock. On systems without
 ``fcntl`` (Windows) locking is a no-op and a single writer per run is the user's responsibility.
+Whether another process holds a lock is asked by taking it for a moment
+(:meth:`FileLock.is_held_elsewhere`), so a non-blocking :meth:`FileLock.acquire` tries again
+for up to :data:`PROBE_PATIENCE_S` before it reports the lock as held: a probe holds it for
+microseconds, a holder for the length of its work.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import time
 from pathlib import Path
 
 try:
@@ -94,6 +99,11 @@ def remove_temporaries(folder: Path, targets=None) -> list[str]:
     return removed
 
 
+#: How long a non-blocking acquire keeps trying (every ``PROBE_RETRY_S``) before the lock
+#: counts as held by another process: longer than any probe of it holds it.
+PROBE_PATIENCE_S, PROBE_RETRY_S = 0.1, 0.005
+
+
 class FileLock:
     """Exclusive advisory lock on ``path`` (created if missing), released on close or death."""
 
@@ -106,16 +116,23 @@ class FileLock:
         return self._fd is not None
 
     def acquire(self, blocking: bool = False) -> bool:
-        """Take the lock; return False if another holder has it and ``blocking`` is False."""
+        """Take the lock; return False if another holder has it and ``blocking`` is False
+        (after trying again for :data:`PROBE_PATIENCE_S`: another process may only be asking
+        whether it is held)."""
         if self._fd is not None:
             return True
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         if fcntl is not None:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
-            except BlockingIOError:
-                os.close(fd)
-                return False
+            deadline = time.monotonic() + PROBE_PATIENCE_S
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
+                    break
+                except BlockingIOError:
+                    if time.monotonic() >= deadline:
+                        os.close(fd)
+                        return False
+                    time.sleep(PROBE_RETRY_S)
         self._fd = fd
         return True
 

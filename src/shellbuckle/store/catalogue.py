@@ -32,7 +32,8 @@ Columns (:data:`COLUMNS`):
 - ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
   written or whose worker died; ``message`` (the run's, and, where the last attempt's
-  analysis or location of a finished run failed, that failure's); ``stop_reason`` (``self-intersection`` or
+  analysis or location of a finished run failed and that failure stands, the failure's);
+  ``stop_reason`` (``self-intersection`` or
   ``end of schedule`` for a finished run);
 - ``steps`` (last finished volume step; step 0 is the sphere), ``final_dV_over_V``;
 - ``pressure_drop_dV_over_V``: dV/V at the first step whose pressure (the Lagrange multiplier of
@@ -313,6 +314,25 @@ def _parameters(point: dict, meta: dict | None) -> dict:
     return row
 
 
+def _failure_stands(store: RunStore, last: dict) -> bool:
+    """Whether the last attempt on a finished run failed in its analysis or location
+    (``analysis failed``, ``location failed``) and that failure still stands: its steps are
+    not all analysed, or its events not all located (:func:`shellbuckle.locate.pending`). A
+    failure mended since (``shellbuckle analyze`` or ``locate``, outside the sweep) no longer
+    stands."""
+    outcome = last.get("outcome")
+    if outcome not in ("analysis failed", "location failed") or not last.get("message"):
+        return False
+    if outcome == "analysis failed":
+        return not analysis_complete(store)
+    from ..locate import pending
+
+    try:
+        return bool(pending(store.path))
+    except Exception:  # what the location failed on, still there
+        return True
+
+
 def run_row(out_dir, name: str, point: dict) -> dict:
     """The catalogue row of run ``name`` (module docstring), read from its run folder."""
     out_dir = Path(out_dir)
@@ -346,9 +366,11 @@ def run_row(out_dir, name: str, point: dict) -> dict:
             # the worker died (or the task failed outside deflate) after the folder was made
             row.update(status="failed", message=last.get("message"))
         row["stop_reason"] = stop_reason(row["status"], row["message"])
-        if last.get("outcome") in ("analysis failed", "location failed") and last.get("message"):
+        if _failure_stands(store, last):
             # the run stands; what failed after it is said where the sweep looks
             row["message"] = "; ".join(m for m in (row["message"], last["message"]) if m)
+        elif last.get("outcome") in ("analysis failed", "location failed"):
+            row["traceback"] = None  # mended since, outside the sweep
         if not table.empty:
             row.update(steps=int(table["step"].iloc[-1]),
                        final_dV_over_V=float(table["dV_over_V"].iloc[-1]),

@@ -15,7 +15,7 @@ point of its own grid) is ignored with a warning and replaced when the run is lo
 
 It is replaced atomically under its own lock, one event at a time, so an interrupted location
 keeps the events already located. One process at a time locates a run's events: it holds
-``.locating.lock`` while it does (:func:`locating`), and another finds the run busy. A file that cannot be read is reported and treated as absent
+``.locating.lock`` while it does (:func:`locating`), and another waits for it. A file that cannot be read is reported and treated as absent
 (the location can be made again: it is derived from the stored steps).
 """
 
@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -40,8 +41,9 @@ LOCATE_TOL = 1e-4
 
 def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
     """The located events of the run in ``folder``, ``{name: point}`` (empty if none, or if
-    the file is damaged or of an older version; an entry that is not a point, a JSON object,
-    is left out: a warning says so unless ``warn`` is False)."""
+    the file is damaged or of an older version; an entry that is not a located point, a JSON
+    object with the fields every point has (:func:`_is_point`), is left out: a warning says so
+    unless ``warn`` is False)."""
     path = Path(folder) / LOCATED_JSON
     try:
         text = path.read_text(encoding="utf-8")
@@ -61,12 +63,29 @@ def read_located(folder, *, warn: bool = True) -> dict[str, dict]:
         log.warning("%s cannot be read (%s): the located events are ignored; "
                     "`shellbuckle locate %s` locates them again", path, exc, Path(folder))
         return {}
-    damaged = sorted(name for name, point in events.items() if not isinstance(point, dict))
+    damaged = sorted(name for name, point in events.items() if not _is_point(point))
     if damaged and warn:
         log.warning("%s: the entries %s are not located points: they are ignored; "
                     "`shellbuckle locate %s` locates them again", path, ", ".join(damaged),
                     Path(folder))
     return {name: point for name, point in events.items() if name not in damaged}
+
+
+#: The fields every located point has, with numbers: the events, the catalogue and the
+#: tables read them (:func:`shellbuckle.locate._locate_event` writes them all).
+POINT_NUMBERS = ("dV_over_V", "uncertainty", "lo", "hi")
+
+
+def _is_point(point) -> bool:
+    """Whether ``point`` has the form of a located point: a JSON object with an integer
+    ``step``, finite numbers :data:`POINT_NUMBERS` and a ``mechanism``."""
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    return (isinstance(point, dict) and isinstance(point.get("step"), int)
+            and not isinstance(point.get("step"), bool)
+            and all(number(point.get(k)) for k in POINT_NUMBERS)
+            and isinstance(point.get("mechanism"), str))
 
 
 def write_located(folder, events: Mapping[str, Mapping]) -> None:
@@ -81,26 +100,17 @@ def write_located(folder, events: Mapping[str, Mapping]) -> None:
         atomic_write_bytes(folder / LOCATED_JSON, text.encode("utf-8"))
 
 
-class LocationBusy(RuntimeError):
-    """Another process is locating the events of this run (it holds its ``.locating.lock``)."""
-
-
-def locating_elsewhere(folder) -> bool:
-    """Whether another process (or lock object) is locating the events of the run in
-    ``folder`` now."""
-    return FileLock(Path(folder) / LOCATING_LOCK).is_held_elsewhere()
-
-
 @contextlib.contextmanager
 def locating(folder):
-    """Hold the run's location lock while the block locates its events; :class:`LocationBusy`
-    at once if another process holds it (a second sweep, or ``shellbuckle locate``, started
-    while a location runs: the two would make the same bisections at the same time)."""
+    """Hold the run's location lock while the block locates its events, waiting (with a
+    warning) while another process holds it: a second sweep on the same folder, or
+    ``shellbuckle locate``, started while a location runs, then finds the events located
+    instead of making the same bisections at the same time."""
     lock = FileLock(Path(folder) / LOCATING_LOCK)
     if not lock.acquire():
-        raise LocationBusy(f"another process is locating the events of {folder} (it holds "
-                           f"{Path(folder) / LOCATING_LOCK}); its points are stored as it "
-                           f"finds them")
+        log.warning("another process is locating the events of %s (it holds %s); waiting for "
+                    "it", folder, Path(folder) / LOCATING_LOCK)
+        lock.acquire(blocking=True)
     try:
         yield
     finally:

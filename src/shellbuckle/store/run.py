@@ -705,15 +705,23 @@ class RunStore:
     # ------------------------------------------------------------------ table and analysis
 
     def analysis(self) -> dict[int, dict]:
-        """Analysis results per step, as stored in ``analysis.json`` (empty if none)."""
+        """Analysis results per step, as stored in ``analysis.json`` (empty if none; an entry
+        that is not a JSON object is left out, with a warning, and analysed again where asked;
+        a file that is not a JSON object of steps: ValueError)."""
         try:
             text = (self._path / ANALYSIS_JSON).read_text(encoding="utf-8")
         except FileNotFoundError:
             return {}
         try:
-            return {int(k): v for k, v in json.loads(text).items()}
+            entries = {int(k): v for k, v in json.loads(text).items()}
         except (json.JSONDecodeError, AttributeError, ValueError) as exc:
             raise ValueError(f"{self._path / ANALYSIS_JSON} is damaged ({exc})") from None
+        damaged = sorted(k for k, v in entries.items() if not isinstance(v, dict))
+        if damaged:  # derived from the steps: analysed again where asked
+            log.warning("%s: the entries of steps %s are not analyses (JSON objects): they are "
+                        "ignored; `shellbuckle analyze %s` makes them again",
+                        self._path / ANALYSIS_JSON, ", ".join(map(str, damaged)), self._path)
+        return {k: v for k, v in entries.items() if k not in damaged}
 
     def update_analysis(self, results: Mapping[int, Mapping]) -> None:
         """Add or refresh analysis columns: ``{step: {"shape": ..., "W": ..., ...}}``.
