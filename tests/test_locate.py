@@ -520,6 +520,7 @@ def test_locate_command_takes_several_runs_and_study_folders(runs, tmp_path, cap
 
 def test_locate_command_waits_for_another_process_locating_the_run(runs, tmp_path, capsys,
                                                                     caplog):
+    import logging
     import shutil
     import threading
 
@@ -536,11 +537,20 @@ def test_locate_command_waits_for_another_process_locating_the_run(runs, tmp_pat
              c0_cycle=False, locate=False, threads=1, progress=False)
     other = FileLock(study / "a" / LOCATING_LOCK)
     assert other.acquire()
-    releases = threading.Timer(1.0, other.release)
-    releases.start()
-    with caplog.at_level("WARNING"):
-        assert main(["locate", str(study), "--threads", "1", "--json"]) == 0
-    releases.join()
+
+    class Releases(logging.Handler):  # the other process finishes once this one waits
+        def emit(self, record):
+            if "waiting for it" in record.getMessage():
+                threading.Timer(0.5, other.release).start()
+
+    handler = Releases()
+    logging.getLogger("shellbuckle.store.located").addHandler(handler)
+    try:
+        with caplog.at_level("WARNING"):
+            assert main(["locate", str(study), "--threads", "1", "--json"]) == 0
+    finally:
+        logging.getLogger("shellbuckle.store.located").removeHandler(handler)
+        other.release()
     captured = capsys.readouterr()
     assert "another process is locating the events of" in caplog.text
     assert "waiting for it" in caplog.text

@@ -240,6 +240,7 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
 
 def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(tmp_path):
     import json
+    import logging
     import threading
     import time
 
@@ -266,13 +267,26 @@ def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sw
     other = FileLock(folder / LOCATING_LOCK)
     assert other.acquire()
     kept = located.read_bytes()
-    results = []
-    task = threading.Thread(target=lambda: results.append(run_point(point, tmp_path)))
-    task.start()
-    time.sleep(1.0)
-    assert task.is_alive() and located.read_bytes() == kept
-    other.release()
-    task.join()
+    results, waiting = [], threading.Event()
+
+    class Waiting(logging.Handler):
+        def emit(self, record):
+            if "waiting for it" in record.getMessage():
+                waiting.set()
+
+    handler = Waiting()
+    logging.getLogger("shellbuckle.store.located").addHandler(handler)
+    task = threading.Thread(target=lambda: results.append(run_point(point, tmp_path)),
+                            daemon=True)
+    try:
+        task.start()
+        assert waiting.wait(timeout=300)  # it reached the lock, said so, and waits
+        time.sleep(0.5)
+        assert task.is_alive() and located.read_bytes() == kept
+    finally:
+        logging.getLogger("shellbuckle.store.located").removeHandler(handler)
+        other.release()
+    task.join(timeout=600)
     (result,) = results
     assert result["outcome"] == "finished"
     assert read_attempts(tmp_path, point["name"])[-1]["action"] == "locate"
@@ -317,7 +331,10 @@ def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, 
     from shellbuckle import locate as locate_module
     from shellbuckle.store.catalogue import read_attempts, run_row
 
-    (point,) = SweepSpec(gamma=1000, icosphere=4, until=0.15).points()
+    spec = SweepSpec(gamma=1000, icosphere=4, until=0.15)
+    (point,) = spec.points()
+    write_sweep_file(tmp_path, spec.to_dict(), {point["name"]: point})
+    catalogue = Catalogue(tmp_path)  # as a sweep keeps it: rows of unchanged runs cached
     assert run_point(point, tmp_path)["outcome"] == "finished"
     located = tmp_path / point["name"] / "located.json"
     data = json.loads(located.read_text())
@@ -338,10 +355,12 @@ def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, 
     assert row["message"].startswith("end of the schedule")
     assert row["message"].endswith("location: FloatingPointError: a bisection that broke")
     assert row["traceback"]
+    assert "location: FloatingPointError" in catalogue.write()["message"].iloc[0]
     monkeypatch.undo()  # located outside the sweep: the row is the run's own again
     locate_module.locate(tmp_path / point["name"])
     row = run_row(tmp_path, point["name"], point)
     assert "location" not in row["message"] and row["traceback"] is None
+    assert catalogue.write()["message"].iloc[0] == row["message"]  # seen by the kept rows
     assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 

@@ -719,11 +719,12 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
             outcome, message = "analysis failed", f"analysis: {type(exc).__name__}: {exc}"
             tb = _traceback.format_exc()
             log.warning("run %s: %s", name, message)
-    if outcome == "finished" and state in ("analyze", "locate") and analyze:
+    if outcome == "finished" and analyze and _analysis_available():
         from .locate import locate
 
-        try:  # what an interrupted location left (deflate locates the runs it finishes);
-            # while another process locates it, this waits and keeps what that one stored
+        try:  # what an interrupted location left, or what another process (the run's writer,
+            # in another sweep) is still locating: this waits for it and keeps what it stored;
+            # nothing to do (deflate locates the runs it finishes) returns before any lock
             with _named_logs(name):
                 locate(run)
         except Exception as exc:  # the run stands; the next sweep locates it again

@@ -75,7 +75,7 @@ log = logging.getLogger(__name__)
 
 FORMAT_NAME = "shellbuckle-sweep"
 FORMAT_VERSION = 1
-from .names import CATALOGUE_CSV, LOGS_DIR, SWEEP_JSON  # noqa: E402, F401
+from .names import CATALOGUE_CSV, LOCATED_JSON, LOGS_DIR, SWEEP_JSON  # noqa: E402, F401
 
 #: Relative pressure drop between consecutive steps taken as the primary snap-through when the
 #: analysis is not available (the same criterion confirms primary buckling in the analysis).
@@ -393,7 +393,7 @@ def _signature(out_dir: Path, name: str):
     folder = out_dir / name
     parts = []
     for path in (folder / RUN_JSON, folder / MESH_H5, folder / ANALYSIS_JSON,
-                 attempts_path(out_dir, name),
+                 folder / LOCATED_JSON, attempts_path(out_dir, name),
                  traceback_path(out_dir, name)):
         try:
             st = path.stat()

@@ -704,10 +704,10 @@ class RunStore:
 
     # ------------------------------------------------------------------ table and analysis
 
-    def analysis(self) -> dict[int, dict]:
+    def analysis(self, *, warn: bool = True) -> dict[int, dict]:
         """Analysis results per step, as stored in ``analysis.json`` (empty if none; an entry
-        that is not a JSON object is left out, with a warning, and analysed again where asked;
-        a file that is not a JSON object of steps: ValueError)."""
+        that is not a JSON object is left out, with a warning unless ``warn`` is False, and
+        analysed again where asked; a file that is not a JSON object of steps: ValueError)."""
         try:
             text = (self._path / ANALYSIS_JSON).read_text(encoding="utf-8")
         except FileNotFoundError:
@@ -717,7 +717,7 @@ class RunStore:
         except (json.JSONDecodeError, AttributeError, ValueError) as exc:
             raise ValueError(f"{self._path / ANALYSIS_JSON} is damaged ({exc})") from None
         damaged = sorted(k for k, v in entries.items() if not isinstance(v, dict))
-        if damaged:  # derived from the steps: analysed again where asked
+        if damaged and warn:  # derived from the steps: analysed again where asked
             log.warning("%s: the entries of steps %s are not analyses (JSON objects): they are "
                         "ignored; `shellbuckle analyze %s` makes them again",
                         self._path / ANALYSIS_JSON, ", ".join(map(str, damaged)), self._path)
@@ -738,7 +738,7 @@ class RunStore:
                 self._existing_step(k)  # raises with the list of finished steps
             updates[k] = _scalar_dict(values, f"analysis of step {k}", reserved=TABLE_COLUMNS)
         with locked_update(self._path, ANALYSIS_JSON, ANALYSIS_LOCK):
-            merged = self.analysis()
+            merged = self.analysis(warn=False)  # the entries left out are replaced
             for k, values in updates.items():
                 merged.setdefault(k, {}).update(values)
             text = json.dumps({str(k): merged[k] for k in sorted(merged)}, indent=1)
@@ -751,10 +751,12 @@ class RunStore:
             finally:
                 self._writer.release()
 
-    def _rows(self) -> tuple[list[dict], list[str]]:
+    def _rows(self, warn: bool = True) -> tuple[list[dict], list[str]]:
         """The table's rows (record and analysis of every step, as stored) and its columns,
-        in the order :meth:`table` documents. The rows share the cached records: read only."""
-        analysis = self.analysis()
+        in the order :meth:`table` documents. The rows share the cached records: read only.
+        ``warn``: as :meth:`analysis` (table.csv is written after every step: no warning
+        there, or a long run would repeat it at every step)."""
+        analysis = self.analysis(warn=warn)
         stored, damaged = self._scan()
         rows = [{**self._step_cache[k][1], **analysis.get(k, {})}
                 for k in stored if k not in damaged]
@@ -775,7 +777,7 @@ class RunStore:
         """``table.csv`` from the stored records, with the csv module rather than through
         :meth:`table` (pandas takes ~7 ms a step for what this writes in well under one);
         ``pandas.read_csv`` reads it back to the table's values."""
-        atomic_write_bytes(self._path / TABLE_CSV, table_csv(*self._rows()))
+        atomic_write_bytes(self._path / TABLE_CSV, table_csv(*self._rows(warn=False)))
 
     # ------------------------------------------------------------------ status and writing
 
