@@ -238,6 +238,34 @@ def test_run_point_resumes_a_paused_run_and_skips_a_finished_one(tmp_path):
     assert again["outcome"] == "skipped" and _file_states(folder) == after
 
 
+def test_a_damaged_attempts_log_is_read_as_none_and_set_aside_by_the_next_attempt(tmp_path,
+                                                                                    caplog):
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import attempts_path, read_attempts, run_row
+
+    (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1).points()
+    deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1,
+            out=tmp_path / point["name"], max_steps=2)
+    log = attempts_path(tmp_path, point["name"])
+    log.parent.mkdir()
+    for damage in ('{"run": "x", "attempts": [1]}', '{"run": "x", "attem'):
+        log.write_text(damage)
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            assert read_attempts(tmp_path, point["name"]) == []
+            row = run_row(tmp_path, point["name"], point)  # the catalogue reads past it
+        assert "its attempts are not counted" in caplog.text
+        assert row["attempts"] == 0 and row["status"] == "paused"
+    result = run_point(point, tmp_path, analyze=False)  # resumes, and records its attempt
+    assert result["outcome"] == "finished"
+    (attempt,) = read_attempts(tmp_path, point["name"])
+    assert attempt["outcome"] == "finished"
+    aside = log.with_name(log.name + ".damaged-1")
+    assert aside.read_text() == '{"run": "x", "attem'  # kept, never deleted
+
+
 def test_a_finished_run_whose_location_was_interrupted_is_located_by_the_next_sweep(tmp_path):
     import json
     import logging

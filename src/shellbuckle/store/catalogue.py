@@ -198,22 +198,50 @@ def traceback_path(out_dir, name: str) -> Path:
     return Path(out_dir) / LOGS_DIR / f"{name}.traceback.txt"
 
 
+def _damaged_attempts(path: Path) -> tuple[list[dict], str | None]:
+    """The attempts recorded in ``path`` and, if the file is damaged (not JSON, or not a
+    list of attempt objects), what is wrong with it (the attempts then ``[]``)."""
+    try:
+        data = _read_json(path)
+    except ValueError as exc:
+        return [], str(exc)
+    if data is None:
+        return [], None
+    attempts = data.get("attempts", []) if isinstance(data, dict) else None
+    if not isinstance(attempts, list) or not all(isinstance(a, dict) for a in attempts):
+        return [], f"{path} does not hold a list of attempts"
+    return list(attempts), None
+
+
 def read_attempts(out_dir, name: str) -> list[dict]:
-    """The sweep's attempts at run ``name``, oldest first (empty list if none)."""
-    data = _read_json(attempts_path(out_dir, name))
-    return [] if data is None else list(data.get("attempts", []))
+    """The sweep's attempts at run ``name``, oldest first (empty list if none). A damaged log
+    (it is written atomically: damaged from outside) counts as none, with a warning; the next
+    attempt sets it aside (:func:`record_attempt`). The run's results do not depend on it."""
+    attempts, damaged = _damaged_attempts(attempts_path(out_dir, name))
+    if damaged:
+        log.warning("%s; its attempts are not counted (the next attempt at run %s sets the "
+                    "file aside)", damaged, name)
+    return attempts
 
 
 def record_attempt(out_dir, name: str, attempt: dict, *, replace_last: bool = False,
                    traceback: str | None = None) -> None:
-    """Append ``attempt`` to ``logs/<name>.json`` (or replace the last one), atomically.
+    """Append ``attempt`` to ``logs/<name>.json`` (or replace the last one), atomically (a
+    damaged log is first set aside as ``<name>.json.damaged-<n>``).
 
     ``traceback`` (text) is written to ``logs/<name>.traceback.txt``. One task works on a run
     at a time, so the read-modify-write needs no lock.
     """
     path = attempts_path(out_dir, name)
     path.parent.mkdir(parents=True, exist_ok=True)
-    attempts = read_attempts(out_dir, name)
+    attempts, damaged = _damaged_attempts(path)
+    if damaged:  # kept beside, never deleted, as a damaged step is
+        n = 1
+        while path.with_name(f"{path.name}.damaged-{n}").exists():
+            n += 1
+        os.replace(path, path.with_name(f"{path.name}.damaged-{n}"))
+        log.warning("%s; set aside as %s, and a new log begun", damaged,
+                    path.with_name(f"{path.name}.damaged-{n}").name)
     if replace_last and attempts:
         attempts[-1] = attempt
     else:
