@@ -99,6 +99,18 @@ def remove_temporaries(folder: Path, targets=None) -> list[str]:
     return removed
 
 
+def set_aside(file: Path) -> Path:
+    """Rename the damaged ``file`` to ``<name>.damaged-<n>`` beside it (the first ``n`` not
+    taken; never deleted) and return the new path."""
+    file = Path(file)
+    n = 1
+    while file.with_name(f"{file.name}.damaged-{n}").exists():
+        n += 1
+    target = file.with_name(f"{file.name}.damaged-{n}")
+    os.replace(file, target)
+    return target
+
+
 #: How long a non-blocking acquire keeps trying (every ``PROBE_RETRY_S``) before the lock
 #: counts as held by another process: longer than any probe of it holds it.
 PROBE_PATIENCE_S, PROBE_RETRY_S = 0.1, 0.005

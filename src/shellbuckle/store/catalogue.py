@@ -68,7 +68,7 @@ import numpy as np
 import pandas as pd
 
 from ..util import now
-from .atomic import atomic_write_bytes
+from .atomic import atomic_write_bytes, set_aside
 from .run import ANALYSIS_JSON, MESH_H5, RUN_JSON, STEPS_DIR, RunStore, check_format
 
 log = logging.getLogger(__name__)
@@ -236,12 +236,7 @@ def record_attempt(out_dir, name: str, attempt: dict, *, replace_last: bool = Fa
     path.parent.mkdir(parents=True, exist_ok=True)
     attempts, damaged = _damaged_attempts(path)
     if damaged:  # kept beside, never deleted, as a damaged step is
-        n = 1
-        while path.with_name(f"{path.name}.damaged-{n}").exists():
-            n += 1
-        os.replace(path, path.with_name(f"{path.name}.damaged-{n}"))
-        log.warning("%s; set aside as %s, and a new log begun", damaged,
-                    path.with_name(f"{path.name}.damaged-{n}").name)
+        log.warning("%s; set aside as %s, and a new log begun", damaged, set_aside(path).name)
     if replace_last and attempts:
         attempts[-1] = attempt
     else:
@@ -342,6 +337,10 @@ def _parameters(point: dict, meta: dict | None) -> dict:
     return row
 
 
+#: The outcomes of an attempt whose run finished but whose analysis or location then failed.
+AFTER_RUN_FAILURES = ("analysis failed", "location failed")
+
+
 def _failure_stands(store: RunStore, last: dict) -> bool:
     """Whether the last attempt on a finished run failed in its analysis or location
     (``analysis failed``, ``location failed``) and that failure still stands: its steps are
@@ -349,7 +348,7 @@ def _failure_stands(store: RunStore, last: dict) -> bool:
     failure mended since (``shellbuckle analyze`` or ``locate``, outside the sweep) no longer
     stands."""
     outcome = last.get("outcome")
-    if outcome not in ("analysis failed", "location failed") or not last.get("message"):
+    if outcome not in AFTER_RUN_FAILURES or not last.get("message"):
         return False
     if outcome == "analysis failed":
         return not analysis_complete(store)
@@ -371,7 +370,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
     row.update(name=name, path=name, attempts=len(attempts),
                task_wall_s=float(sum(a.get("wall_s") or 0.0 for a in attempts)),
                task_cpu_s=float(sum(a.get("cpu_s") or 0.0 for a in attempts)))
-    if last.get("outcome") in ("failed", "analysis failed", "location failed") and \
+    if last.get("outcome") in ("failed", *AFTER_RUN_FAILURES) and \
             traceback_path(out_dir, name).exists():
         row["traceback"] = str(Path(LOGS_DIR) / traceback_path(out_dir, name).name)
     meta = None
@@ -397,7 +396,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
         if _failure_stands(store, last):
             # the run stands; what failed after it is said where the sweep looks
             row["message"] = "; ".join(m for m in (row["message"], last["message"]) if m)
-        elif last.get("outcome") in ("analysis failed", "location failed"):
+        elif last.get("outcome") in AFTER_RUN_FAILURES:
             row["traceback"] = None  # mended since, outside the sweep
         if not table.empty:
             row.update(steps=int(table["step"].iloc[-1]),

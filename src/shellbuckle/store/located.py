@@ -15,8 +15,9 @@ point of its own grid) is ignored with a warning and replaced when the run is lo
 
 It is replaced atomically under its own lock, one event at a time, so an interrupted location
 keeps the events already located. One process at a time locates a run's events: it holds
-``.locating.lock`` while it does (:func:`locating`), and another waits for it. A file that cannot be read is reported and treated as absent
-(the location can be made again: it is derived from the stored steps).
+``.locating.lock`` while it does (:func:`locating`), and another waits for it. A file that
+cannot be read is reported and treated as absent (the location can be made again: it is
+derived from the stored steps).
 """
 
 from __future__ import annotations

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from collections.abc import Mapping
 from pathlib import Path
 
 import h5py
 
 from ..util import now
+from .atomic import set_aside
 from .folder import check_run_folder
 from .layout import (DESCRIPTION_ATTR, FORMAT_NAME, FORMAT_VERSION, MESH_H5, REQUIRED_FIELDS,
                      REQUIRED_MESH_FIELDS, RUN_JSON, STEPS_DIR, _has_step_files, _ranges,
@@ -198,12 +198,7 @@ def set_aside_step(path: Path, k: int, what: str) -> str:
     """Rename the damaged step file ``k`` of the run in ``path`` to ``step_K.h5.damaged-<n>``
     (the first ``n`` not taken; never deleted) and return the new name; ``what`` is what is
     wrong with it, for the log."""
-    file = step_file(path, k)
-    n = 1
-    while file.with_name(f"{file.name}.damaged-{n}").exists():
-        n += 1
-    target = file.with_name(f"{file.name}.damaged-{n}")
-    os.replace(file, target)
+    target = set_aside(step_file(path, k))
     log.warning("run %s: set aside the damaged step %d (%s) as %s/%s; it is computed "
                 "again", path, k, what, STEPS_DIR, target.name)
     return target.name
