@@ -203,9 +203,11 @@ def test_classical_threshold():
     # textbook Zoelly pressure with the 2D modulus E d
     assert math.isclose(th.pressure, 2 * E * d ** 2 / (math.sqrt(3 * (1 - sigma ** 2)) * R ** 2),
                         rel_tol=1e-13)
+    assert math.isclose(T.classical_pressure(p), th.pressure, rel_tol=1e-15)
     for q in PARAMS:
         th = T.classical_threshold(q)
         assert math.isclose(th.pressure, 4 * math.sqrt(q.kappa * q.A) / q.R ** 2, rel_tol=1e-14)
+        assert T.classical_pressure(q) == th.pressure  # the progress bar's p_c, no root search
         assert math.isclose(th.dV_over_V, 6 * (1 - q.nu) / math.sqrt(q.gamma), rel_tol=1e-14)
         assert math.isclose(T.pressure_sphere(th.dV_over_V, q), th.pressure, rel_tol=1e-12)
         assert math.isclose(T.pressure_sphere_exact(th.dV_over_V_exact, q), th.pressure,

@@ -255,8 +255,8 @@ def run_metadata(run) -> dict:
     (name), ``bending_factor`` ``f`` and ``kappa_helfrich = f kappa`` (the bending energy is
     ``1/2 kappa_helfrich (c1 + c2 - c0)^2``), ``A`` (2D Young modulus), ``R``, ``c0`` (the
     protocol's, ``2/R`` when it gave none) and ``p_c``, the classical buckling pressure
-    :func:`shellbuckle.theory.classical_threshold` (``kappa/R^3``)."""
-    from .theory import classical_threshold
+    :func:`shellbuckle.theory.classical_pressure` (``kappa/R^3``)."""
+    from .theory import classical_pressure
 
     run = _open(run)
     params = run.params
@@ -266,7 +266,7 @@ def run_metadata(run) -> dict:
             "bending_factor": float(params.bending_factor),
             "kappa_helfrich": float(params.kappa_helfrich), "A": float(params.A),
             "R": float(params.R), "c0": 2.0 / params.R if c0 is None else float(c0),
-            "p_c": float(classical_threshold(params).pressure)}
+            "p_c": float(classical_pressure(params))}
 
 
 def step_metadata(run, step: int, table=None, p_c: float | None = None) -> dict:

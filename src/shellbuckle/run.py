@@ -590,11 +590,11 @@ class _Progress:
         self.redirect.__enter__()
 
     def update(self, X, record: dict) -> None:
-        from .theory import classical_threshold
+        from .theory import classical_pressure
 
         params = self.params if "gamma" not in record else self.params.with_gamma(
             record["gamma"])
-        p_c = classical_threshold(params).pressure
+        p_c = classical_pressure(params)
         self.bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} "
                                  f"E/kappa={record['E_over_kappa']:.4g} "
                                  f"p/p_c={record['pressure'] / p_c:.3f} {self._shape(X)}",

@@ -134,7 +134,7 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
         xmax = max(xmax, float(np.nanmax(x)))
         ymin, ymax = min(ymin, float(np.nanmin(y))), max(ymax, float(np.nanmax(y)))
     xmax *= 1.05
-    p_c = theory.classical_threshold(params).pressure / p_unit
+    p_c = theory.classical_pressure(params) / p_unit
     if theory_curve:
         grid = np.linspace(0.0, min(xmax, 0.999), 300)
         ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_unit, "--", color="0.5",

@@ -58,19 +58,19 @@ def energy_unit(params, units: str = "reduced") -> tuple[float, str]:
 def pressure_unit(params, units: str = "reduced") -> tuple[float, str]:
     """``(p_unit, axis label)``: the figures draw ``pressure / p_unit``, a pressure in the
     run's units (as stored). Reduced: ``p_unit`` is the classical buckling pressure
-    ``p_c = 4 sqrt(f kappa A)/R^2`` (:func:`shellbuckle.theory.classical_threshold`), the one
+    ``p_c = 4 sqrt(f kappa A)/R^2`` (:func:`shellbuckle.theory.classical_pressure`), the one
     pressure unit of the run figure, the p-V figure and the progress bar; ``"si"``: 1 (the
     stored pressure of a material run is in Pa)."""
     if check_units(units, params) == "si":
         return 1.0, r"pressure $p$ (Pa)"
-    return (theory.classical_threshold(params).pressure,
+    return (theory.classical_pressure(params),
             r"pressure $p/p_c$,  $p_c = 4\sqrt{f\kappa A}/R^2$ (classical buckling)")
 
 
 def p_c_label(params, units: str = "reduced") -> str:
     """The legend of the classical threshold's line: its formula and value, in the
     table's unit kappa/R^3 (reduced) or in Pa."""
-    p_c = theory.classical_threshold(params).pressure
+    p_c = theory.classical_pressure(params)
     f = "" if params.bending_factor == 1 else f"{params.bending_factor:g}"
     if check_units(units, params) == "si":
         return rf"classical $p_c=4\sqrt{{{f}\kappa A}}/R^2$ = {p_c:.3g} Pa"
@@ -115,7 +115,7 @@ def _energy_panel(ax, table, params, grid, xmax, units):
 def _pressure_panel(ax, table, params, grid, xmax, units):
     """The pressure (p/p_c, or Pa) of the table, of the shrunk sphere and p_c."""
     p_unit, label = pressure_unit(params, units)
-    p_c = theory.classical_threshold(params).pressure / p_unit
+    p_c = theory.classical_pressure(params) / p_unit
     ax.plot(grid, theory.pressure_sphere_exact(grid, params) / p_unit, "--", color="0.4",
             label="uniformly shrunk sphere", gid="pressure_sphere")
     ax.axhline(p_c, color="C3", lw=0.8, label=p_c_label(params, units), gid="p_c")
