@@ -392,6 +392,34 @@ def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, 
     assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 
+def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_sweep(
+        tmp_path, monkeypatch):
+    import shellbuckle.analysis as analysis_module
+    from shellbuckle.store.catalogue import read_attempts
+
+    spec = SweepSpec(gamma=1000, icosphere=4, until=0.15)
+    (point,) = spec.points()
+    write_sweep_file(tmp_path, spec.to_dict(),
+                     {point["name"]: {k: v for k, v in point.items() if k != "name"}})
+
+    def fails(*args, **kwargs):
+        raise FloatingPointError("a classification that broke")
+
+    monkeypatch.setattr(analysis_module, "analyze_run", fails)
+    result = run_point(point, tmp_path)
+    assert result["outcome"] == "analysis failed" and result["status"] == "finished"
+    monkeypatch.undo()
+    (tmp_path / point["name"] / "analysis.json").unlink()  # what the run itself had analysed
+    attempts = read_attempts(tmp_path, point["name"])
+    catalogue = run_sweep(spec, tmp_path, progress=False, retry_failed=False)
+    assert read_attempts(tmp_path, point["name"]) == attempts  # left as it stands
+    assert "analysis: FloatingPointError" in catalogue["message"].iloc[0]
+    catalogue = run_sweep(spec, tmp_path, workers=1, progress=False)
+    assert read_attempts(tmp_path, point["name"])[-1]["outcome"] == "finished"
+    assert "analysis:" not in catalogue["message"].iloc[0]
+    assert not math.isnan(catalogue["primary_dV_over_V"].iloc[0])
+
+
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
                                                                       monkeypatch):
     # one gradient-descent iteration per minimization (no jiggle retries with it) and no c0

@@ -48,8 +48,9 @@ from pathlib import Path
 
 from .protocol.spec import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
-from .store.catalogue import (Catalogue, analysis_complete, check_sweep_folder, read_attempts,
-                              record_attempt, write_sweep_file)
+from .store.catalogue import (AFTER_RUN_FAILURES, Catalogue, analysis_complete,
+                              check_sweep_folder, read_attempts, record_attempt,
+                              write_sweep_file)
 from .util import interrupt_of, now
 
 log = logging.getLogger(__name__)
@@ -838,7 +839,8 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
     object (``workers`` then scales it). ``analyze``: classify the steps of each finished run
     on its worker (:func:`shellbuckle.analysis.analyze_run`) so the catalogue has thresholds
     and W. ``retry_failed``: run again the points whose last attempt failed (they resume from
-    their last finished step). The catalogue (``out_dir/catalogue.csv``) is rewritten after
+    their last finished step; a finished run whose analysis or location failed is analysed or
+    located again). The catalogue (``out_dir/catalogue.csv``) is rewritten after
     every finished task; finished runs are skipped without being opened for writing.
     """
     if not isinstance(spec, SweepSpec):
@@ -861,7 +863,7 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
             continue
         last = read_attempts(out_dir, p["name"])[-1:]
         failed = state == "failed" or (last and last[0].get("outcome") in (
-            "failed", "location failed") and state != "done")
+            "failed", *AFTER_RUN_FAILURES) and state != "done")
         if state == "done" or (failed and not retry_failed):
             continue
         todo.append(p)
