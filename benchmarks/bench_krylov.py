@@ -195,6 +195,13 @@ def main() -> None:
         import pyamg
     except ImportError:
         parser.exit(2, "bench_krylov.py needs pyamg: pip install pyamg\n")
+    try:
+        steps = [int(v) for v in args.steps.split(",")]
+    except ValueError:
+        steps = [0]
+    if min(steps) < 1:
+        parser.error(f"--steps {args.steps}: comma-separated integers >= 1 (a step and the "
+                     f"one before it)")
     tols = sorted(args.tol, reverse=True)
     run = Run.of(args.run)
     ctx = stored_context(run, threads=1)
@@ -202,7 +209,7 @@ def main() -> None:
           f"{args.shift:g} mean|diag K|; cap {args.max_cpu:g} CPU s, {MAX_ITER} iterations")
     print(f"{'step':>4} {'method':<24} {'setup s':>8}"
           + "".join(f" {f'its {tol:g}':>6} {'cpu s':>7}" for tol in tols) + f" {'rel. res':>9}")
-    for k in [int(s) for s in args.steps.split(",")]:
+    for k in steps:
         t = Tangent(ctx, run.positions(k), args.shift)
         b = real_rhs(run, ctx, t, k)
         kb = t.kkt_rhs(b)

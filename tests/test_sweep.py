@@ -417,7 +417,7 @@ def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_swe
     catalogue = run_sweep(spec, tmp_path, workers=1, progress=False)
     assert read_attempts(tmp_path, point["name"])[-1]["outcome"] == "finished"
     assert "analysis:" not in catalogue["message"].iloc[0]
-    assert not math.isnan(catalogue["primary_dV_over_V"].iloc[0])
+    assert catalogue["primary_source"].iloc[0] == "analysis"  # not the pressure drop
 
 
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
