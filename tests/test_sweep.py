@@ -420,6 +420,33 @@ def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_swe
     assert catalogue["primary_source"].iloc[0] == "analysis"  # not the pressure drop
 
 
+def test_no_retry_locates_a_run_whose_failed_analysis_was_mended_outside(tmp_path,
+                                                                         monkeypatch):
+    import shellbuckle.analysis as analysis_module
+    from shellbuckle.store.catalogue import read_attempts
+    from shellbuckle.store.located import read_located
+
+    spec = SweepSpec(gamma=1000, icosphere=4, until=0.15)
+    (point,) = spec.points()
+    write_sweep_file(tmp_path, spec.to_dict(),
+                     {point["name"]: {k: v for k, v in point.items() if k != "name"}})
+
+    def fails(*args, **kwargs):
+        raise FloatingPointError("a classification that broke")
+
+    monkeypatch.setattr(analysis_module, "analyze_run", fails)
+    assert run_point(point, tmp_path)["outcome"] == "analysis failed"
+    monkeypatch.undo()  # the run's own analysis is whole: the failure no longer stands
+    located = tmp_path / point["name"] / "located.json"
+    data = json.loads(located.read_text())
+    del data["events"]["primary_buckling"]  # but an event is still to locate
+    located.write_text(json.dumps(data))
+    catalogue = run_sweep(spec, tmp_path, workers=1, progress=False, retry_failed=False)
+    assert read_attempts(tmp_path, point["name"])[-1]["outcome"] == "finished"
+    assert "primary_buckling" in read_located(located.parent)
+    assert "analysis:" not in catalogue["message"].iloc[0]
+
+
 def test_a_runs_warnings_name_the_run_and_the_labelling_ends_with_it(tmp_path, capsys,
                                                                       monkeypatch):
     # one gradient-descent iteration per minimization (no jiggle retries with it) and no c0

@@ -49,8 +49,8 @@ from pathlib import Path
 from .protocol.spec import DEFAULT_MAX_ITER, DEFAULT_TEMPERATURE, METHODS
 from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (AFTER_RUN_FAILURES, Catalogue, analysis_complete,
-                              check_sweep_folder, read_attempts, record_attempt,
-                              write_sweep_file)
+                              check_sweep_folder, failure_stands, read_attempts,
+                              record_attempt, write_sweep_file)
 from .util import interrupt_of, now
 
 log = logging.getLogger(__name__)
@@ -848,6 +848,8 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
     check_scheduler(scheduler)
     if workers is not None:
         _integer("workers", workers, 1, "integers >= 1")
+    from .store.run import RunStore
+
     out_dir = Path(out_dir)
     points = spec.points()
     write_sweep_file(out_dir, spec.to_dict(), _runs(points))
@@ -862,8 +864,10 @@ def run_sweep(spec: SweepSpec, out_dir, *, scheduler=None, workers: int | None =
                         "aside and the next sweep computes it anew", out_dir / p["name"])
             continue
         last = read_attempts(out_dir, p["name"])[-1:]
-        failed = state == "failed" or (last and last[0].get("outcome") in (
-            "failed", *AFTER_RUN_FAILURES) and state != "done")
+        outcome = last[0].get("outcome") if last else None
+        failed = state == "failed" or (outcome == "failed" and state != "done") or (
+            outcome in AFTER_RUN_FAILURES and state in ("analyze", "locate")
+            and failure_stands(RunStore.open(out_dir / p["name"]), last[0]))
         if state == "done" or (failed and not retry_failed):
             continue
         todo.append(p)

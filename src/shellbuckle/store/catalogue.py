@@ -341,7 +341,7 @@ def _parameters(point: dict, meta: dict | None) -> dict:
 AFTER_RUN_FAILURES = ("analysis failed", "location failed")
 
 
-def _failure_stands(store: RunStore, last: dict) -> bool:
+def failure_stands(store: RunStore, last: dict) -> bool:
     """Whether the last attempt on a finished run failed in its analysis or location
     (``analysis failed``, ``location failed``) and that failure still stands: its steps are
     not all analysed, or its events not all located (:func:`shellbuckle.locate.pending`). A
@@ -393,7 +393,7 @@ def run_row(out_dir, name: str, point: dict) -> dict:
             # the worker died (or the task failed outside deflate) after the folder was made
             row.update(status="failed", message=last.get("message"))
         row["stop_reason"] = stop_reason(row["status"], row["message"])
-        if _failure_stands(store, last):
+        if failure_stands(store, last):
             # the run stands; what failed after it is said where the sweep looks
             row["message"] = "; ".join(m for m in (row["message"], last["message"]) if m)
         elif last.get("outcome") in AFTER_RUN_FAILURES:
