@@ -392,10 +392,10 @@ def test_a_location_that_fails_is_recorded_and_named_in_the_catalogue(tmp_path, 
     assert run_point(point, tmp_path)["outcome"] == "skipped"
 
 
-def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_sweep(
-        tmp_path, monkeypatch):
+def _finished_with_a_failed_analysis(tmp_path, monkeypatch):
+    """A one-run sweep folder whose run finished and whose analysis in the sweep then failed:
+    ``(spec, point)``. The run's own analysis (made while it ran) is whole."""
     import shellbuckle.analysis as analysis_module
-    from shellbuckle.store.catalogue import read_attempts
 
     spec = SweepSpec(gamma=1000, icosphere=4, until=0.15)
     (point,) = spec.points()
@@ -405,10 +405,18 @@ def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_swe
     def fails(*args, **kwargs):
         raise FloatingPointError("a classification that broke")
 
-    monkeypatch.setattr(analysis_module, "analyze_run", fails)
-    result = run_point(point, tmp_path)
+    with monkeypatch.context() as patch:
+        patch.setattr(analysis_module, "analyze_run", fails)
+        result = run_point(point, tmp_path)
     assert result["outcome"] == "analysis failed" and result["status"] == "finished"
-    monkeypatch.undo()
+    return spec, point
+
+
+def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_sweep(
+        tmp_path, monkeypatch):
+    from shellbuckle.store.catalogue import read_attempts
+
+    spec, point = _finished_with_a_failed_analysis(tmp_path, monkeypatch)
     (tmp_path / point["name"] / "analysis.json").unlink()  # what the run itself had analysed
     attempts = read_attempts(tmp_path, point["name"])
     catalogue = run_sweep(spec, tmp_path, progress=False, retry_failed=False)
@@ -422,21 +430,11 @@ def test_an_analysis_that_fails_is_left_by_no_retry_and_analysed_by_the_next_swe
 
 def test_no_retry_locates_a_run_whose_failed_analysis_was_mended_outside(tmp_path,
                                                                          monkeypatch):
-    import shellbuckle.analysis as analysis_module
     from shellbuckle.store.catalogue import read_attempts
     from shellbuckle.store.located import read_located
 
-    spec = SweepSpec(gamma=1000, icosphere=4, until=0.15)
-    (point,) = spec.points()
-    write_sweep_file(tmp_path, spec.to_dict(),
-                     {point["name"]: {k: v for k, v in point.items() if k != "name"}})
-
-    def fails(*args, **kwargs):
-        raise FloatingPointError("a classification that broke")
-
-    monkeypatch.setattr(analysis_module, "analyze_run", fails)
-    assert run_point(point, tmp_path)["outcome"] == "analysis failed"
-    monkeypatch.undo()  # the run's own analysis is whole: the failure no longer stands
+    # the run's own analysis is whole: the failure no longer stands
+    spec, point = _finished_with_a_failed_analysis(tmp_path, monkeypatch)
     located = tmp_path / point["name"] / "located.json"
     data = json.loads(located.read_text())
     del data["events"]["primary_buckling"]  # but an event is still to locate
