@@ -473,6 +473,26 @@ def test_bad_input_is_refused_in_one_line_before_any_work(places, tmp_path, monk
     assert _listing(tmp_path, places["root"]) == before, "nothing is written for refused input"
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+@pytest.mark.parametrize("argv", [
+    ["deflate", "--out", "/proc/shellbuckle_run"],
+    ["sweep", "--out", "/proc/shellbuckle_sweep"],
+    ["theory", "--out", "/proc/shellbuckle.png"],
+    ["deflate", "--out", "/proc"],
+])
+def test_a_folder_the_file_system_refuses_is_refused_before_any_work(tmp_path, monkeypatch,
+                                                                       capsys, argv):
+    # /proc refuses new files whoever asks, the superuser too, whose os.access says yes
+    monkeypatch.chdir(tmp_path)
+    code, err = _refused(argv, capsys)
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(f"shellbuckle {argv[0]}: error: --out {argv[-1]}: ")
+    assert "not writable" in lines[0]
+    assert not any(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("argv, option, value", [
     (["deflate", "--gamma", "-1e3", "--out", "x"], "--gamma", "-1e3"),
     (["deflate", "--vertices", "200", "--pressures", "1e4", "--out", "x"], "--pressures", "1e4"),

@@ -27,6 +27,7 @@ import math
 import os
 import re
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -491,8 +492,21 @@ def _parent(option: str, path: Path) -> None:
                                 "(create it first)")
     if not parent.is_dir():
         raise ValueError(f"{option} {path}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{option} {path}: the folder {parent} is not writable")
+    _writable(option, path, parent)
+
+
+def _writable(option: str, path: Path, folder: Path) -> None:
+    """A file can be made in ``folder``. ``os.access`` answers from the permissions alone
+    (and lets the superuser write anywhere); a nameless temporary file, gone when closed,
+    asks the file system itself, which refuses in ``/proc`` or ``/sys``."""
+    what = f"the folder {folder}" if folder != path else "the folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: {what} is not writable")
+    try:
+        tempfile.TemporaryFile(dir=folder).close()
+    except OSError as e:
+        raise ValueError(f"{option} {path}: {what} is not writable "
+                         f"({e.strerror or type(e).__name__})") from None
 
 
 def output_file(option: str, path, suffixes=(), *, beside=()) -> Path:
@@ -527,8 +541,7 @@ def output_folder(option: str, path, *, run: bool = False) -> Path:
     if path.exists():
         if not path.is_dir():
             raise ValueError(f"{option} {path}: is an existing file; expected a folder")
-        if not os.access(path, os.W_OK | os.X_OK):
-            raise ValueError(f"{option} {path}: the folder is not writable")
+        _writable(option, path, path)
         return path
     _parent(option, path)
     return path
