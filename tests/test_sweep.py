@@ -748,3 +748,46 @@ def test_a_finished_run_with_a_damaged_mesh_is_no_success_in_the_catalogue(refer
     assert (copy / "logs" / f"{name}.json").read_bytes() == attempts
     assert f"{name} finished, but its mesh.h5 is not the mesh" in caplog.text
     assert again.set_index("name").loc[name, "status"] == "failed"
+
+
+def test_a_sweep_stopped_by_sigterm_leaves_its_runs_interrupted_and_resumes_them(tmp_path):
+    # SIGTERM to the sweep alone (a batch system's time limit): its local cluster's workers are
+    # killed in the middle of their runs, which no longer say "running" (nor the catalogue
+    # "pending") of a run nobody computes
+    out = tmp_path / "s"
+    argv = ["sweep", "--gamma", "2333", "--icosphere", "8", "--seeds", "0,1", "--until", "0.6",
+            "--workers", "2", "--quiet", "--out", str(out)]
+    log = (tmp_path / "sweep.log").open("w")
+    proc = subprocess.Popen([sys.executable, "-m", "shellbuckle", *argv],
+                            start_new_session=True, stdout=log, stderr=subprocess.STDOUT)
+    names = [p["name"] for p in SweepSpec(gamma=2333, icosphere=8, seeds=[0, 1],
+                                          until=0.6).points()]
+    try:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and proc.poll() is None:
+            if all((out / n / "steps" / "step_000001.h5").exists() for n in names):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, (tmp_path / "sweep.log").read_text()[-3000:]
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        log.close()
+    assert code == 128 + signal.SIGTERM, (tmp_path / "sweep.log").read_text()[-3000:]
+    catalogue = pd.read_csv(out / CATALOGUE_CSV).set_index("name")
+    for n in names:
+        meta = json.loads((out / n / "run.json").read_text())
+        assert meta["status"] == "interrupted", meta
+        assert "SIGTERM" in meta["message"] and "resume" in meta["message"]
+        last = json.loads((out / "logs" / f"{n}.json").read_text())["attempts"][-1]
+        assert last["outcome"] == "interrupted" and last["ended"] is not None
+        assert catalogue.loc[n, "status"] == "interrupted"
+        stored = len(_records(out / n))
+        assert f"after step {stored - 1}" in meta["message"]  # step 0 is stored too
+
+    assert cli_main(argv) == 0
+    for n in names:
+        assert _folder_truth(out / n)["status"] == "finished"
+    assert (Catalogue.load(out)["status"] == "finished").all()

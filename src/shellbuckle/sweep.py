@@ -65,6 +65,8 @@ NANNY_ENV = "distributed.nanny.pre-spawn-environ"
 PAPER_VERTICES = 3594
 #: Seconds between checks while another process writes a run this sweep wants to continue.
 LOCK_POLL_S = 2.0
+#: Seconds a stopped sweep waits for the lock of a run whose worker it killed to be released.
+STOPPED_WAIT_S = 10.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
          "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree",
@@ -945,12 +947,63 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix_str(f"failed {failed}")
-    except BaseException:
+    except BaseException as exc:
         for f in futures:
             f.cancel()
+        if scheduler is None:  # the local cluster: its workers end when it closes
+            _close(bar, owned)
+            bar, owned = None, []
+            _mark_stopped(out_dir, [p["name"] for p in todo], exc)
+            catalogue.write()
         raise
     finally:
-        if bar is not None:
-            bar.close()
-        for obj in owned:
-            obj.close()
+        _close(bar, owned)
+
+
+def _close(bar, owned) -> None:
+    if bar is not None:
+        bar.close()
+    for obj in owned:
+        obj.close()
+
+
+def _mark_stopped(out_dir: Path, names, exc: BaseException) -> None:
+    """After the sweep stopped (``exc``: an interrupt, or an error of its own) and its local
+    cluster closed, killing the workers in the middle of their runs: each run left "running"
+    by a worker that is gone is recorded as interrupted (resumable: the same sweep resumes it)
+    and its open attempt as ended, so that neither run.json nor the catalogue says "running"
+    or "pending" of a run nobody computes. A run a live process still writes is left as it
+    is."""
+    from .store.run import RUN_JSON, RunStore
+
+    interrupt = interrupt_of(exc)
+    if interrupt is not None:
+        why = f"interrupted ({interrupt})" if str(interrupt) else "interrupted"
+    else:
+        why = f"interrupted (the sweep stopped: {type(exc).__name__}: {exc})"
+    for name in names:
+        folder = out_dir / name
+        deadline = time.monotonic() + STOPPED_WAIT_S
+        while _writer_active(folder) and time.monotonic() < deadline:
+            time.sleep(0.1)  # a killed worker's lock goes with its process
+        if _writer_active(folder):
+            continue
+        status = None
+        if (folder / RUN_JSON).exists():
+            try:
+                store = RunStore.open(folder)
+            except ValueError:  # unreadable: the next sweep says why
+                continue
+            status = store.status
+            if status == "running":
+                where = ("before step 0 was stored" if store.last_step is None
+                         else f"after step {store.last_step}")
+                status = "interrupted"
+                store.set_status(status, f"{why} with the sweep {where}; the same sweep "
+                                 f"command or `shellbuckle resume {folder}` continues it")
+                store.close()
+        attempts = read_attempts(out_dir, name)
+        if attempts and attempts[-1].get("outcome") == "running":
+            record_attempt(out_dir, name, attempts[-1] | {
+                "ended": now(), "outcome": "interrupted", "status": status,
+                "message": f"{why} with the sweep"}, replace_last=True)
