@@ -791,3 +791,34 @@ def test_a_sweep_stopped_by_sigterm_leaves_its_runs_interrupted_and_resumes_them
     for n in names:
         assert _folder_truth(out / n)["status"] == "finished"
     assert (Catalogue.load(out)["status"] == "finished").all()
+
+
+def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
+    # what an earlier sweep, killed outright, left open is not this sweep's to end
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import read_attempts, record_attempt
+    from shellbuckle.store.run import RunStore
+    from shellbuckle.sweep import _mark_stopped
+
+    names = []
+    for seed, started in ((0, "2026-01-01T00:00:00+00:00"), (1, "2026-01-01T00:00:09+00:00")):
+        (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
+        deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
+                out=tmp_path / point["name"], max_steps=2)
+        store = RunStore.open(tmp_path / point["name"])
+        store.set_status("running")  # as a killed worker leaves it
+        store.close()
+        record_attempt(tmp_path, point["name"], {"started": started, "ended": None,
+                                                 "outcome": "running", "message": None})
+        names.append(point["name"])
+    _mark_stopped(tmp_path, names, KeyboardInterrupt(), since="2026-01-01T00:00:05+00:00")
+    earlier, ours = names
+    assert _status(tmp_path, earlier) == "running"
+    assert read_attempts(tmp_path, earlier)[-1]["outcome"] == "running"
+    assert _status(tmp_path, ours) == "interrupted"
+    last = read_attempts(tmp_path, ours)[-1]
+    assert last["outcome"] == "interrupted" and last["status"] == "interrupted"
+    assert last["started"] == "2026-01-01T00:00:09+00:00" and last["ended"] is not None
+    assert "after step 2" in json.loads((tmp_path / ours / "run.json").read_text())["message"]

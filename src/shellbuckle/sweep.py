@@ -915,6 +915,7 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
             analyze, total) -> None:
     from distributed import as_completed
 
+    since = now()  # the attempts this sweep begins start from here
     client, owned = _client(scheduler, workers)
     bar = None
     futures = []
@@ -953,7 +954,7 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
         if scheduler is None:  # the local cluster: its workers end when it closes
             _close(bar, owned)
             bar, owned = None, []
-            _mark_stopped(out_dir, [p["name"] for p in todo], exc)
+            _mark_stopped(out_dir, [p["name"] for p in todo], exc, since)
             catalogue.write()
         raise
     finally:
@@ -967,13 +968,13 @@ def _close(bar, owned) -> None:
         obj.close()
 
 
-def _mark_stopped(out_dir: Path, names, exc: BaseException) -> None:
+def _mark_stopped(out_dir: Path, names, exc: BaseException, since: str) -> None:
     """After the sweep stopped (``exc``: an interrupt, or an error of its own) and its local
-    cluster closed, killing the workers in the middle of their runs: each run left "running"
-    by a worker that is gone is recorded as interrupted (resumable: the same sweep resumes it)
-    and its open attempt as ended, so that neither run.json nor the catalogue says "running"
-    or "pending" of a run nobody computes. A run a live process still writes is left as it
-    is."""
+    cluster closed, killing the workers in the middle of their runs: each run whose attempt
+    this sweep began (at or after ``since``) and left open is recorded as interrupted
+    (resumable: the same sweep resumes it) and the attempt as ended, so that neither run.json
+    nor the catalogue says "running" or "pending" of a run nobody computes. A run a live
+    process still writes, and what earlier sweeps left, are left as they are."""
     from .store.run import RUN_JSON, RunStore
 
     interrupt = interrupt_of(exc)
@@ -981,9 +982,13 @@ def _mark_stopped(out_dir: Path, names, exc: BaseException) -> None:
         why = f"interrupted ({interrupt})" if str(interrupt) else "interrupted"
     else:
         why = f"interrupted (the sweep stopped: {type(exc).__name__}: {exc})"
+    deadline = time.monotonic() + STOPPED_WAIT_S
     for name in names:
+        attempts = read_attempts(out_dir, name)
+        if not attempts or attempts[-1].get("outcome") != "running" \
+                or (attempts[-1].get("started") or "") < since:
+            continue
         folder = out_dir / name
-        deadline = time.monotonic() + STOPPED_WAIT_S
         while _writer_active(folder) and time.monotonic() < deadline:
             time.sleep(0.1)  # a killed worker's lock goes with its process
         if _writer_active(folder):
@@ -1002,8 +1007,6 @@ def _mark_stopped(out_dir: Path, names, exc: BaseException) -> None:
                 store.set_status(status, f"{why} with the sweep {where}; the same sweep "
                                  f"command or `shellbuckle resume {folder}` continues it")
                 store.close()
-        attempts = read_attempts(out_dir, name)
-        if attempts and attempts[-1].get("outcome") == "running":
-            record_attempt(out_dir, name, attempts[-1] | {
-                "ended": now(), "outcome": "interrupted", "status": status,
-                "message": f"{why} with the sweep"}, replace_last=True)
+        record_attempt(out_dir, name, attempts[-1] | {
+            "ended": now(), "outcome": "interrupted", "status": status,
+            "message": f"{why} with the sweep"}, replace_last=True)
