@@ -822,3 +822,36 @@ def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
     assert last["outcome"] == "interrupted" and last["status"] == "interrupted"
     assert last["started"] == "2026-01-01T00:00:09+00:00" and last["ended"] is not None
     assert "after step 2" in json.loads((tmp_path / ours / "run.json").read_text())["message"]
+
+
+def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
+    # the context the paper's reproduction and the convention study run their sweeps in
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import read_attempts, record_attempt
+    from shellbuckle.store.run import RunStore
+    from shellbuckle.sweep import _runs, sweep_client
+    from shellbuckle.util import now
+
+    folders = [tmp_path / "sweep", tmp_path / "special", tmp_path / "never"]
+    spec = SweepSpec(gamma=271, icosphere=3, until=0.1)
+    (point,) = spec.points()
+    with pytest.raises(KeyboardInterrupt):
+        with sweep_client(None, 1, folders):
+            for folder in folders[:2]:  # what a worker leaves when it is killed mid-run
+                write_sweep_file(folder, spec.to_dict(), _runs([point]))
+                deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1,
+                        out=folder / point["name"], max_steps=2)
+                store = RunStore.open(folder / point["name"])
+                store.set_status("running")
+                store.close()
+                record_attempt(folder, point["name"], {"started": now(), "ended": None,
+                                                       "outcome": "running"})
+            raise KeyboardInterrupt
+    for folder in folders[:2]:
+        assert _status(folder, point["name"]) == "interrupted"
+        assert read_attempts(folder, point["name"])[-1]["outcome"] == "interrupted"
+        assert Catalogue.load(folder)["status"].tolist() == ["interrupted"]
+        assert pd.read_csv(folder / CATALOGUE_CSV)["status"].tolist() == ["interrupted"]
+    assert not folders[2].exists()

@@ -51,6 +51,7 @@ from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (AFTER_RUN_FAILURES, Catalogue, analysis_complete,
                               check_sweep_folder, failure_stands, read_attempts,
                               record_attempt, write_sweep_file)
+from .store.names import LOGS_DIR, SWEEP_JSON
 from .util import interrupt_of, now
 
 log = logging.getLogger(__name__)
@@ -915,55 +916,74 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
             analyze, total) -> None:
     from distributed import as_completed
 
-    since = now()  # the attempts this sweep begins start from here
-    client, owned = _client(scheduler, workers)
-    bar = None
-    futures = []
-    try:
-        futures = [client.submit(run_point, p, str(out_dir), analyze=analyze, pure=False,
-                                 key=f"shellbuckle-{p['name']}-{os.urandom(4).hex()}")
-                   for p in todo]
-        names = {f.key: p["name"] for f, p in zip(futures, todo)}
-        if progress:
-            from tqdm.auto import tqdm
+    with sweep_client(scheduler, workers, [out_dir]) as client:
+        bar = None
+        futures = []
+        try:
+            futures = [client.submit(run_point, p, str(out_dir), analyze=analyze, pure=False,
+                                     key=f"shellbuckle-{p['name']}-{os.urandom(4).hex()}")
+                       for p in todo]
+            names = {f.key: p["name"] for f, p in zip(futures, todo)}
+            if progress:
+                from tqdm.auto import tqdm
 
-            bar = tqdm(total=total, initial=total - len(todo), unit="run", desc="sweep",
-                       dynamic_ncols=True)
-        failed = 0
-        for future in as_completed(futures):
-            try:
-                result = future.result()
-            except Exception as exc:  # the task itself died: worker killed, cancelled...
-                name = names[future.key]
-                message = f"{type(exc).__name__}: {exc}"
-                log.warning("run %s: task failed: %s", name, message)
-                record_attempt(out_dir, name, {"started": None, "ended": now(), "wall_s": None,
-                                               "host": None, "pid": None, "worker": None,
-                                               "action": "deflate", "outcome": "failed",
-                                               "status": "failed", "message": message},
-                               traceback="".join(_traceback.format_exception(exc)))
-                result = {"outcome": "failed"}
-            failed += result["outcome"] == "failed"
-            catalogue.write()
+                bar = tqdm(total=total, initial=total - len(todo), unit="run", desc="sweep",
+                           dynamic_ncols=True)
+            failed = 0
+            for future in as_completed(futures):
+                try:
+                    result = future.result()
+                except Exception as exc:  # the task itself died: worker killed, cancelled...
+                    name = names[future.key]
+                    message = f"{type(exc).__name__}: {exc}"
+                    log.warning("run %s: task failed: %s", name, message)
+                    record_attempt(out_dir, name, {
+                        "started": None, "ended": now(), "wall_s": None, "host": None,
+                        "pid": None, "worker": None, "action": "deflate", "outcome": "failed",
+                        "status": "failed", "message": message},
+                        traceback="".join(_traceback.format_exception(exc)))
+                    result = {"outcome": "failed"}
+                failed += result["outcome"] == "failed"
+                catalogue.write()
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix_str(f"failed {failed}")
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+        finally:
             if bar is not None:
-                bar.update(1)
-                bar.set_postfix_str(f"failed {failed}")
+                bar.close()
+
+
+@contextmanager
+def sweep_client(scheduler, workers, folders):
+    """The Dask client for the sweeps into ``folders`` (:func:`_client`), closed after. When
+    they stop on an exception (Ctrl-C, SIGTERM, an error) and the cluster is the local one
+    made here, closing it kills its workers in the middle of their runs; the runs whose
+    attempts began here are then recorded as interrupted (:func:`_mark_stopped`) and each
+    folder's catalogue is written again."""
+    since = now()  # the attempts begun here start from here
+    client, owned = _client(scheduler, workers)
+    try:
+        yield client
     except BaseException as exc:
-        for f in futures:
-            f.cancel()
         if scheduler is None:  # the local cluster: its workers end when it closes
-            _close(bar, owned)
-            bar, owned = None, []
-            _mark_stopped(out_dir, [p["name"] for p in todo], exc, since)
-            catalogue.write()
+            _close(owned)
+            owned = []
+            for folder in map(Path, folders):
+                if (folder / SWEEP_JSON).exists():
+                    names = sorted(p.name.removesuffix(".json")
+                                   for p in (folder / LOGS_DIR).glob("*.json"))
+                    _mark_stopped(folder, names, exc, since)
+                    Catalogue(folder).write()
         raise
     finally:
-        _close(bar, owned)
+        _close(owned)
 
 
-def _close(bar, owned) -> None:
-    if bar is not None:
-        bar.close()
+def _close(owned) -> None:
     for obj in owned:
         obj.close()
 

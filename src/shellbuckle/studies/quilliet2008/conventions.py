@@ -676,20 +676,16 @@ def sensitivity(out, conventions, *, seeds: int = 2, workers=None, scheduler=Non
     ``OUT/sensitivity/`` (resumable); the base is taken from ``OUT/<convention>/sweep`` when
     the study is there, else run too. Writes ``OUT/sensitivity.md`` and ``.csv``."""
     from ...analysis.collect import collect_runs
-    from ...sweep import _client, run_sweep
+    from ...sweep import run_sweep, sweep_client
 
     out = Path(out)
     folder = out / "sensitivity"
     bases = [out / c / "sweep" for c in conventions if (out / c / "sweep").is_dir()]
     with_base = len(bases) < len(conventions)
     if run:
-        client, owned = _client(scheduler, workers)
-        try:
+        with sweep_client(scheduler, workers, [folder]) as client:
             for spec in sensitivity_specs(conventions, seeds, with_base=with_base):
                 run_sweep(spec, folder, scheduler=client, progress=progress)
-        finally:
-            for obj in owned:
-                obj.close()
     frames = [collect_runs([folder])] if folder.is_dir() else []
     frames += [collect_runs([b]) for b in bases]
     table = sensitivity_table(frames)

@@ -219,7 +219,7 @@ def _special_specs(study: Study, main, seed: int = 0) -> tuple[list, dict]:
 
 def _sweeps(study: Study, out: Path, *, scheduler, workers, progress) -> dict:
     """Run the main sweep and the special runs on one Dask client; return the catalogues."""
-    from ...sweep import _client, check_scheduler, run_sweep
+    from ...sweep import check_scheduler, run_sweep, sweep_client
 
     check_scheduler(scheduler)
     main = study.sweep_spec()
@@ -235,18 +235,16 @@ def _sweeps(study: Study, out: Path, *, scheduler, workers, progress) -> dict:
     level = quiet.level if quiet is not None else None
     if quiet is not None:
         quiet.setLevel(logging.WARNING)
-    client, owned = _client(scheduler, workers)
     catalogues = {}
     try:
-        log.info("main sweep: %d runs in %s", len(main), out / "sweep")
-        catalogues["sweep"] = run_sweep(main, out / "sweep", scheduler=client,
-                                        progress=progress)
-        for spec in specials:
-            catalogues["special"] = run_sweep(spec, out / "special", scheduler=client,
-                                              progress=progress)
+        with sweep_client(scheduler, workers, [out / "sweep", out / "special"]) as client:
+            log.info("main sweep: %d runs in %s", len(main), out / "sweep")
+            catalogues["sweep"] = run_sweep(main, out / "sweep", scheduler=client,
+                                            progress=progress)
+            for spec in specials:
+                catalogues["special"] = run_sweep(spec, out / "special", scheduler=client,
+                                                  progress=progress)
     finally:
-        for obj in owned:
-            obj.close()
         if quiet is not None:
             quiet.setLevel(level)
     return {"catalogues": catalogues, "where": where}
