@@ -480,10 +480,14 @@ def test_bad_input_is_refused_in_one_line_before_any_work(places, tmp_path, monk
     ["theory", "--out", "/proc/shellbuckle.png"],
     ["deflate", "--out", "/proc"],
 ])
+@pytest.mark.parametrize("probe", ["nameless", "named"])
 def test_a_folder_the_file_system_refuses_is_refused_before_any_work(tmp_path, monkeypatch,
-                                                                       capsys, argv):
-    # /proc refuses new files whoever asks, the superuser too, whose os.access says yes
+                                                                       capsys, argv, probe):
+    # /proc refuses new files whoever asks; os.access says yes, as it does to the superuser
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(os, "access", lambda *args, **kwargs: True)
+    if probe == "named":  # a file system without nameless files (O_TMPFILE)
+        monkeypatch.delattr(os, "O_TMPFILE", raising=False)
     code, err = _refused(argv, capsys)
     assert code == 2, err
     lines = err.strip().splitlines()
@@ -491,6 +495,20 @@ def test_a_folder_the_file_system_refuses_is_refused_before_any_work(tmp_path, m
     assert lines[0].startswith(f"shellbuckle {argv[0]}: error: --out {argv[-1]}: ")
     assert "not writable" in lines[0]
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("probe", ["nameless", "named"])
+def test_the_writability_probe_leaves_nothing_in_a_writable_folder(tmp_path, monkeypatch, probe):
+    from shellbuckle.commands._checks import output_file, output_folder
+
+    if probe == "named":
+        monkeypatch.delattr(os, "O_TMPFILE", raising=False)
+    folder = tmp_path / "here"
+    folder.mkdir()
+    assert output_folder("--out", folder) == folder
+    assert output_folder("--out", folder / "new") == folder / "new"
+    assert output_file("--out", folder / "f.png", (".png",)) == folder / "f.png"
+    assert list(folder.iterdir()) == []
 
 
 @pytest.mark.parametrize("argv, option, value", [

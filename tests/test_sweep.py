@@ -755,13 +755,14 @@ def test_a_sweep_stopped_by_sigterm_leaves_its_runs_interrupted_and_resumes_them
     # killed in the middle of their runs, which no longer say "running" (nor the catalogue
     # "pending") of a run nobody computes
     out = tmp_path / "s"
-    argv = ["sweep", "--gamma", "2333", "--icosphere", "8", "--seeds", "0,1", "--until", "0.6",
-            "--workers", "2", "--quiet", "--out", str(out)]
+    # runs of 80 steps: Dask lets a worker go on for about 4 s before it kills it
+    argv = ["sweep", "--gamma", "2333", "--icosphere", "8", "--seeds", "0,1", "--dv", "0.005",
+            "--until", "0.4", "--workers", "2", "--quiet", "--out", str(out)]
     log = (tmp_path / "sweep.log").open("w")
     proc = subprocess.Popen([sys.executable, "-m", "shellbuckle", *argv],
                             start_new_session=True, stdout=log, stderr=subprocess.STDOUT)
-    names = [p["name"] for p in SweepSpec(gamma=2333, icosphere=8, seeds=[0, 1],
-                                          until=0.6).points()]
+    names = [p["name"] for p in SweepSpec(gamma=2333, icosphere=8, seeds=[0, 1], dv=0.005,
+                                          until=0.4).points()]
     try:
         deadline = time.monotonic() + 240
         while time.monotonic() < deadline and proc.poll() is None:
@@ -785,6 +786,7 @@ def test_a_sweep_stopped_by_sigterm_leaves_its_runs_interrupted_and_resumes_them
         assert last["outcome"] == "interrupted" and last["ended"] is not None
         assert catalogue.loc[n, "status"] == "interrupted"
         stored = len(_records(out / n))
+        assert 1 < stored < 81  # stopped in the middle
         assert f"after step {stored - 1}" in meta["message"]  # step 0 is stored too
 
     assert cli_main(argv) == 0
@@ -793,8 +795,18 @@ def test_a_sweep_stopped_by_sigterm_leaves_its_runs_interrupted_and_resumes_them
     assert (Catalogue.load(out)["status"] == "finished").all()
 
 
-def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
-    # what an earlier sweep, killed outright, left open is not this sweep's to end
+def _dead_pid() -> int:
+    """The pid of a process of this host that has ended."""
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    return int(done.stdout)
+
+
+def test_a_stopped_sweep_marks_only_the_attempts_it_began_whose_process_ended(tmp_path):
+    # what an earlier sweep, killed outright, left open is not this sweep's to end, nor what a
+    # live process (another sweep on the same folder) still works on
+    import socket
+
     from shellbuckle.mesh import icosphere
     from shellbuckle.params import ShellParameters
     from shellbuckle.run import deflate
@@ -803,7 +815,10 @@ def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
     from shellbuckle.sweep import _mark_stopped
 
     names = []
-    for seed, started in ((0, "2026-01-01T00:00:00+00:00"), (1, "2026-01-01T00:00:09+00:00")):
+    host, dead = socket.gethostname(), _dead_pid()
+    for seed, started, pid in ((0, "2026-01-01T00:00:00+00:00", dead),
+                               (1, "2026-01-01T00:00:09+00:00", os.getpid()),
+                               (2, "2026-01-01T00:00:09+00:00", dead)):
         (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
         deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
                 out=tmp_path / point["name"], max_steps=2)
@@ -811,12 +826,14 @@ def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
         store.set_status("running")  # as a killed worker leaves it
         store.close()
         record_attempt(tmp_path, point["name"], {"started": started, "ended": None,
+                                                 "host": host, "pid": pid,
                                                  "outcome": "running", "message": None})
         names.append(point["name"])
     _mark_stopped(tmp_path, names, KeyboardInterrupt(), since="2026-01-01T00:00:05+00:00")
-    earlier, ours = names
-    assert _status(tmp_path, earlier) == "running"
-    assert read_attempts(tmp_path, earlier)[-1]["outcome"] == "running"
+    earlier, alive, ours = names
+    for name in (earlier, alive):
+        assert _status(tmp_path, name) == "running"
+        assert read_attempts(tmp_path, name)[-1]["outcome"] == "running"
     assert _status(tmp_path, ours) == "interrupted"
     last = read_attempts(tmp_path, ours)[-1]
     assert last["outcome"] == "interrupted" and last["status"] == "interrupted"
@@ -824,8 +841,40 @@ def test_a_stopped_sweep_marks_only_the_attempts_it_began(tmp_path):
     assert "after step 2" in json.loads((tmp_path / ours / "run.json").read_text())["message"]
 
 
+def test_a_run_that_cannot_be_marked_does_not_hide_the_interrupt_nor_stop_the_others(
+        tmp_path, caplog):
+    import socket
+
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.store.catalogue import record_attempt
+    from shellbuckle.store.run import RunStore
+    from shellbuckle.sweep import _mark_stopped
+
+    names = []
+    for seed in (0, 1):
+        (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
+        deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
+                out=tmp_path / point["name"], max_steps=2)
+        store = RunStore.open(tmp_path / point["name"])
+        store.set_status("running")
+        store.close()
+        record_attempt(tmp_path, point["name"], {"started": "2026-01-01T00:00:09+00:00",
+                                                 "host": socket.gethostname(),
+                                                 "pid": _dead_pid(), "outcome": "running"})
+        names.append(point["name"])
+    (tmp_path / names[0] / "run.json").write_text("{damaged")
+    with caplog.at_level("WARNING"):
+        _mark_stopped(tmp_path, names, KeyboardInterrupt(), since="2026-01-01T00:00:05+00:00")
+    assert "not recorded as interrupted" in caplog.text and names[0] in caplog.text
+    assert _status(tmp_path, names[1]) == "interrupted"
+
+
 def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
     # the context the paper's reproduction and the convention study run their sweeps in
+    import socket
+
     from shellbuckle.mesh import icosphere
     from shellbuckle.params import ShellParameters
     from shellbuckle.run import deflate
@@ -846,8 +895,9 @@ def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
                 store = RunStore.open(folder / point["name"])
                 store.set_status("running")
                 store.close()
-                record_attempt(folder, point["name"], {"started": now(), "ended": None,
-                                                       "outcome": "running"})
+                record_attempt(folder, point["name"], {
+                    "started": now(), "ended": None, "host": socket.gethostname(),
+                    "pid": _dead_pid(), "outcome": "running"})
             raise KeyboardInterrupt
     for folder in folders[:2]:
         assert _status(folder, point["name"]) == "interrupted"

@@ -66,8 +66,6 @@ NANNY_ENV = "distributed.nanny.pre-spawn-environ"
 PAPER_VERTICES = 3594
 #: Seconds between checks while another process writes a run this sweep wants to continue.
 LOCK_POLL_S = 2.0
-#: Seconds a stopped sweep waits for the lock of a run whose worker it killed to be released.
-STOPPED_WAIT_S = 10.0
 
 _AXES = ("gamma", "nu", "seeds", "vertices", "icosphere", "dv", "until", "c0_cycle", "jiggle",
          "bending", "method", "energy_convention", "smooth_jiggle", "smooth_degree",
@@ -683,7 +681,8 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     ``{"name", "outcome", "status", "message", "wall_s"}`` with ``outcome`` one of ``skipped``,
     ``finished``, ``paused``, ``failed``, ``analysis failed`` or ``location failed`` (the run
     is finished, the classification of its steps or the location of its events raised; the
-    next sweep retries it). The attempt is logged in ``out_dir/logs/<name>.json`` (and the
+    next sweep retries it). A sweep stopped while the task ran ends its attempt with the
+    outcome ``interrupted`` (:func:`sweep_client`). The attempt is logged in ``out_dir/logs/<name>.json`` (and the
     traceback of a failure beside it). This is the Dask task of :func:`run_sweep`; it also runs
     on its own.
     """
@@ -961,23 +960,21 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
 def sweep_client(scheduler, workers, folders):
     """The Dask client for the sweeps into ``folders`` (:func:`_client`), closed after. When
     they stop on an exception (Ctrl-C, SIGTERM, an error) and the cluster is the local one
-    made here, closing it kills its workers in the middle of their runs; the runs whose
-    attempts began here are then recorded as interrupted (:func:`_mark_stopped`) and each
-    folder's catalogue is written again."""
+    made here, closing it kills its workers (after Dask's grace of about 4 s) in the middle of
+    their runs; those runs are then recorded as interrupted (:func:`_mark_stopped`) and each
+    folder's catalogue is written again. A second Ctrl-C or SIGTERM meanwhile is held off
+    until that is done (then the first interrupt is raised)."""
     since = now()  # the attempts begun here start from here
     client, owned = _client(scheduler, workers)
     try:
         yield client
     except BaseException as exc:
         if scheduler is None:  # the local cluster: its workers end when it closes
-            _close(owned)
-            owned = []
-            for folder in map(Path, folders):
-                if (folder / SWEEP_JSON).exists():
-                    names = sorted(p.name.removesuffix(".json")
-                                   for p in (folder / LOGS_DIR).glob("*.json"))
-                    _mark_stopped(folder, names, exc, since)
-                    Catalogue(folder).write()
+            with _signals_held():
+                _close(owned)
+                owned = []
+                for folder in map(Path, folders):
+                    _mark_folder(folder, exc, since)
         raise
     finally:
         _close(owned)
@@ -988,13 +985,67 @@ def _close(owned) -> None:
         obj.close()
 
 
+@contextmanager
+def _signals_held():
+    """Ctrl-C and SIGTERM ignored inside the block (main thread only: elsewhere they cannot
+    be handled and keep their disposition): the sweep is stopping already."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    import signal
+
+    previous = {s: signal.signal(s, lambda signum, frame: None)
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _mark_folder(folder: Path, exc: BaseException, since: str) -> None:
+    """:func:`_mark_stopped` for every run of the sweep folder ``folder`` with an attempts log,
+    then its catalogue written again; a failure is logged, never raised (the sweep's own
+    exception is the one to report)."""
+    if not (folder / SWEEP_JSON).exists():
+        return
+    try:
+        names = sorted(p.name.removesuffix(".json") for p in (folder / LOGS_DIR).glob("*.json"))
+        _mark_stopped(folder, names, exc, since)
+        Catalogue(folder).write()
+    except Exception as failure:  # noqa: BLE001 - reported, the interrupt goes on
+        log.warning("sweep %s: its stopped runs could not all be recorded as interrupted "
+                    "(%s: %s); the same sweep resumes them all the same", folder,
+                    type(failure).__name__, failure)
+
+
+def _process_gone(attempt: dict) -> bool:
+    """The process that made ``attempt`` ran on this host and has ended."""
+    pid = attempt.get("pid")
+    if attempt.get("host") != socket.gethostname() or not isinstance(pid, int) or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # it exists (another user's, e.g. a reused pid)
+        return False
+    return False
+
+
+def _same_attempt(a: dict, b: dict) -> bool:
+    return all(a.get(k) == b.get(k) for k in ("started", "host", "pid", "worker"))
+
+
 def _mark_stopped(out_dir: Path, names, exc: BaseException, since: str) -> None:
-    """After the sweep stopped (``exc``: an interrupt, or an error of its own) and its local
-    cluster closed, killing the workers in the middle of their runs: each run whose attempt
-    this sweep began (at or after ``since``) and left open is recorded as interrupted
-    (resumable: the same sweep resumes it) and the attempt as ended, so that neither run.json
-    nor the catalogue says "running" or "pending" of a run nobody computes. A run a live
-    process still writes, and what earlier sweeps left, are left as they are."""
+    """After a sweep stopped (``exc``: an interrupt, or an error of its own) and its local
+    cluster closed, killing the workers in the middle of their runs: each run whose last
+    attempt began in this sweep (at or after ``since``), is still open, and whose process on
+    this host has ended, is recorded as interrupted in run.json (if it says "running" and no
+    live process holds its writer lock; resumable: the same sweep resumes it), and the attempt
+    as ended, so that neither run.json nor the catalogue says "running" or "pending" of a run
+    nobody computes. What a live process still works on, and what earlier sweeps left, is
+    left as it is. A run that cannot be recorded is logged and skipped."""
     from .store.run import RUN_JSON, RunStore
 
     interrupt = interrupt_of(exc)
@@ -1002,31 +1053,33 @@ def _mark_stopped(out_dir: Path, names, exc: BaseException, since: str) -> None:
         why = f"interrupted ({interrupt})" if str(interrupt) else "interrupted"
     else:
         why = f"interrupted (the sweep stopped: {type(exc).__name__}: {exc})"
-    deadline = time.monotonic() + STOPPED_WAIT_S
     for name in names:
-        attempts = read_attempts(out_dir, name)
-        if not attempts or attempts[-1].get("outcome") != "running" \
-                or (attempts[-1].get("started") or "") < since:
-            continue
         folder = out_dir / name
-        while _writer_active(folder) and time.monotonic() < deadline:
-            time.sleep(0.1)  # a killed worker's lock goes with its process
-        if _writer_active(folder):
-            continue
-        status = None
-        if (folder / RUN_JSON).exists():
-            try:
-                store = RunStore.open(folder)
-            except ValueError:  # unreadable: the next sweep says why
+        try:
+            attempts = read_attempts(out_dir, name)
+            last = attempts[-1] if attempts else {}
+            started = last.get("started")
+            if (last.get("outcome") != "running" or not isinstance(started, str)
+                    or started < since or not _process_gone(last)):
                 continue
-            status = store.status
-            if status == "running":
-                where = ("before step 0 was stored" if store.last_step is None
-                         else f"after step {store.last_step}")
-                status = "interrupted"
-                store.set_status(status, f"{why} with the sweep {where}; the same sweep "
-                                 f"command or `shellbuckle resume {folder}` continues it")
+            status = None
+            if (folder / RUN_JSON).exists():
+                store = RunStore.open(folder)
+                status = store.status
+                if status == "running":
+                    if store.writer_active:
+                        continue
+                    where = ("before step 0 was stored" if store.last_step is None
+                             else f"after step {store.last_step}")
+                    status = "interrupted"
+                    store.set_status(status, f"{why} with the sweep {where}; the same sweep "
+                                     f"command or `shellbuckle resume {folder}` continues it")
                 store.close()
-        record_attempt(out_dir, name, attempts[-1] | {
-            "ended": now(), "outcome": "interrupted", "status": status,
-            "message": f"{why} with the sweep"}, replace_last=True)
+            now_last = read_attempts(out_dir, name)[-1:]
+            if now_last and _same_attempt(now_last[0], last):  # nobody began another since
+                record_attempt(out_dir, name, last | {
+                    "ended": now(), "outcome": "interrupted", "status": status,
+                    "message": f"{why} with the sweep"}, replace_last=True)
+        except Exception as failure:  # noqa: BLE001 - reported, the others go on
+            log.warning("run %s: not recorded as interrupted (%s: %s)", folder,
+                        type(failure).__name__, failure)

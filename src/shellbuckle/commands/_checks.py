@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import errno
 import math
 import os
 import re
@@ -497,16 +498,37 @@ def _parent(option: str, path: Path) -> None:
 
 def _writable(option: str, path: Path, folder: Path) -> None:
     """A file can be made in ``folder``. ``os.access`` answers from the permissions alone
-    (and lets the superuser write anywhere); a nameless temporary file, gone when closed,
-    asks the file system itself, which refuses in ``/proc`` or ``/sys``."""
+    (and lets the superuser write anywhere); the file system itself answers the creation of
+    a nameless file (``O_TMPFILE``), and refuses in ``/proc`` or ``/sys``."""
     what = f"the folder {folder}" if folder != path else "the folder"
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: {what} is not writable")
+    refused = _refuses_files(folder)
+    if refused:
+        raise ValueError(f"{option} {path}: {what} is not writable ({refused})")
+
+
+def _refuses_files(folder: Path) -> str | None:
+    """Why the file system refuses a new file in ``folder``, or None. A nameless file where the
+    file system has them (Linux's ``O_TMPFILE``: nothing appears in the folder); else a
+    hidden probe file, removed at once (where it cannot be removed, the folder is taken as
+    writable: it just was)."""
+    flag = getattr(os, "O_TMPFILE", 0)
+    if flag:
+        try:
+            os.close(os.open(folder, flag | os.O_WRONLY, 0o600))
+            return None
+        except OSError as e:
+            if e.errno not in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL):
+                return e.strerror or type(e).__name__
     try:
-        tempfile.TemporaryFile(dir=folder).close()
+        fd, name = tempfile.mkstemp(prefix=".shellbuckle-probe-", dir=folder)
     except OSError as e:
-        raise ValueError(f"{option} {path}: {what} is not writable "
-                         f"({e.strerror or type(e).__name__})") from None
+        return e.strerror or type(e).__name__
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+    return None
 
 
 def output_file(option: str, path, suffixes=(), *, beside=()) -> Path:
