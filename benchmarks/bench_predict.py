@@ -13,6 +13,10 @@ stored bits) as the protocol makes it, then from a predicted start.
   Comp. 31, 333 (1977); Briggs, Henson & McCormick, *A Multigrid Tutorial*, 2nd ed., ch. 6):
   ``y0`` itself, made stationary by the linear term ``-tau . y``, ``tau = grad E_c(y0) - p
   grad V_c(y0)`` (``p`` fitted by least squares).
+- ``--rescale``: the last minimum scaled uniformly about its centroid to the new volume
+  (exactly: a volume scales as the cube of the factor). The protocol's start is the last
+  minimum moved along the volume gradient to the new volume, which is proportional to each
+  vertex's area: on a randomized mesh its radial move is as uneven as the vertex areas.
 - ``--substeps m``: continuation in smaller volume steps: ``m - 1`` minimizations at evenly
   spaced volumes between the two steps' (uncertified, each from the last), then the protocol's
   step from there.
@@ -102,6 +106,13 @@ def substep_start(ctx, X, dv_from: float, dv_to: float, m: int):
     return X, nit
 
 
+def rescaled_start(ctx, X, dv_to: float):
+    """``X`` scaled about its centroid to the volume ``V0 (1 - dv_to)``."""
+    c = X.mean(axis=0)
+    f = (ctx.V0 * (1.0 - dv_to) / ctx.volume.value(X)) ** (1.0 / 3.0)
+    return c + f * (X - c), 0
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", help="a finished deflation run folder")
@@ -111,6 +122,8 @@ def main() -> None:
                         help="the coarse problem of the full approximation scheme")
     parser.add_argument("--substeps", nargs="*", type=int, default=[],
                         help="numbers of smaller volume steps (>= 2)")
+    parser.add_argument("--rescale", action="store_true",
+                        help="the last minimum scaled uniformly to the new volume")
     parser.add_argument("--no-plain", action="store_true",
                         help="skip the step made from the protocol's own start")
     args = parser.parse_args()
@@ -135,6 +148,7 @@ def main() -> None:
         dv_from, dv_to = float(record_prev["dV_over_V"]), float(stored["target_dV_over_V"])
         starts = [] if args.no_plain else [("plain", None)]
         starts += [("coarse", None)] if coarse_ctx is not None else []
+        starts += [("rescale", None)] if args.rescale else []
         starts += [(f"{m} substeps", m) for m in args.substeps]
         for name, m in starts:
             t = time.process_time()
@@ -142,6 +156,8 @@ def main() -> None:
                 X, nit = X_prev, 0
             elif name == "coarse":
                 X, nit = coarse_start(run, coarse_ctx, X_prev, dv_from, dv_to, args.tilt)
+            elif name == "rescale":
+                X, nit = rescaled_start(step.ctx, X_prev, dv_to)
             else:
                 X, nit = substep_start(step.ctx, X_prev, dv_from, dv_to, m)
             calls.clear()

@@ -229,6 +229,11 @@ def _options() -> dict:
         _Option("--no-direct-return", "direct_return", "after the zero-curvature cycle "
                 "always minimize from the flat minimum, never from the minimum before the "
                 "cycle: slower, for comparisons", value=False),
+        _Option("--rescale-start", "rescale_start", "start each volume step from the last "
+                "minimum scaled uniformly to the new volume, not moved along the volume "
+                "gradient (as Surface Evolver does, unevenly on a randomized mesh): the same "
+                "minima before buckling, about three times faster per step there on 40000 "
+                "vertices", value=True),
     ]
     return {o.field: o for o in options}
 

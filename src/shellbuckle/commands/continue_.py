@@ -28,7 +28,7 @@ from ._options import (add_protocol_options, add_run_output_options, protocol_de
 
 #: Protocol options a continued run takes from the stored run unless given.
 INHERITED = ("seed", "c0_cycle", "temperature", "jiggle", "method", "max_iter", "prerelax",
-             "direct_return")
+             "direct_return", "rescale_start")
 
 
 def register(sub) -> None:

@@ -19,7 +19,7 @@ from ._options import (add_protocol_options, add_run_output_options, add_shell_o
 PROTOCOL = ("seed", "dv", "until", "schedule", "pressures", "c0_cycle", "temperature", "jiggle",
             "smooth_jiggle", "smooth_jiggle_d", "smooth_degree", "shape_imperfection",
             "shape_imperfection_d", "shape_degree", "bending", "method",
-            "max_iter", "c0", "prerelax", "direct_return")
+            "max_iter", "c0", "prerelax", "direct_return", "rescale_start")
 #: The options of the smooth imperfection, which replaces the per-vertex jiggle.
 SMOOTH = ("smooth_jiggle", "smooth_jiggle_d", "smooth_degree")
 #: The options of the shape imperfection (the stress-free shape of a new shell).

@@ -548,6 +548,20 @@ def folded_locally(checker: ContactChecker, X: np.ndarray, *, rings: int) -> str
             f"each other on the mesh (a fold)")
 
 
+def scaled_to_volume(volume, X: np.ndarray, V_target: float) -> np.ndarray:
+    """``X`` scaled uniformly about its vertex centroid to the enclosed volume ``V_target``
+    (a volume scales as the cube of the factor): the start of a volume step with the
+    protocol's ``rescale_start``. The minimizer's own way to a new volume, along the volume
+    gradient (:meth:`~shellbuckle.energies.volume.Volume.restore`), moves each vertex in
+    proportion to its area: on a randomized mesh that move is as uneven as the vertex areas,
+    a strain of order ``dV/V R/h`` that grows as the mesh is refined (mean edge ``h``) and
+    that the minimization then has to remove. A uniform scaling strains the shell uniformly,
+    as the spherical shell's own response before buckling does."""
+    c = X.mean(axis=0)
+    f = (float(V_target) / volume.value(X)) ** (1.0 / 3.0)
+    return c + f * (X - c)
+
+
 def _jiggled(ctx: Context, X: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
     """``X`` jiggled by the protocol's jiggle of size ``sigma`` (:meth:`Protocol.jiggle_sigma`)
     with the random stream ``rng``: Surface Evolver's per-vertex jiggle, or the smooth
@@ -584,12 +598,15 @@ def step(ctx: Context, state: State):
     sigma = p.jiggle_sigma(ctx.mesh.X, state.X, ctx.mesh.topology.edges)
     iterations = 0
     retries = JIGGLE_RETRIES if p.method in ("newton", "alternate") and sigma > 0 else 0
+    start, token = state.X, ctx.workspace.kept
+    if p.rescale_start and p.control == "volume":
+        start, token = scaled_to_volume(ctx.volume, state.X, V_target), None
     for attempt in range(retries + 1):
         contact = None
         rng = step_rng(p.seed, k) if attempt == 0 else np.random.default_rng([p.seed, k, attempt])
-        X = _jiggled(ctx, state.X, sigma, rng)
-        result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=state.X,
-                           relaxed_token=ctx.workspace.kept,
+        X = _jiggled(ctx, start, sigma, rng)
+        result = _minimize(ctx, ctx.energy, X, V_target, pressure, relaxed=start,
+                           relaxed_token=token,
                            certify_single=state.certify_single, jiggle=sigma)
         _check_domain(ctx, k, result)
         iterations += result.nit

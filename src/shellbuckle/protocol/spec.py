@@ -81,6 +81,12 @@ class Protocol:
     mesh (the minimizations of :func:`~shellbuckle.protocol.deflate.step`); runs stored before
     this option existed resume without it (a start closer than 0.3 mean edges to the step's
     start then takes quasi-Newton steps on the Hessian there, as they were made).
+    ``rescale_start``: a volume step starts from the last minimum scaled uniformly to the
+    step's volume (:func:`~shellbuckle.protocol.deflate.scaled_to_volume`), before the jiggle;
+    without it (the default, as Surface Evolver does) the minimizer moves the start along the
+    volume gradient, a move as uneven as the mesh's vertex areas, which costs iterations on
+    fine meshes. The same minima before buckling; where a jiggle crosses a barrier (the
+    buckling events), another jiggled start can cross it at another step.
     ``shape_imperfection`` (a fraction of R) makes the shell itself imperfect, once for the
     whole run and whatever the jiggle: its stress-free shape is the reference sphere with
     each material point moved radially by ``shape_imperfection R f(n)``, ``f`` a field of
@@ -108,6 +114,7 @@ class Protocol:
     smooth_jiggle: float | None = None
     smooth_degree: int | None = None
     relax_imperfection: bool = True
+    rescale_start: bool = False
     shape_imperfection: float | None = None
     shape_degree: int | None = None
 
@@ -129,7 +136,7 @@ class Protocol:
                                       or not isinstance(value, numbers.Real)):
                 raise TypeError(f"{name} must be {kind}, got {type(value).__name__} {value!r}")
         for name in ("c0_cycle", "stop_at_contact", "prerelax", "direct_return",
-                     "relax_imperfection"):
+                     "relax_imperfection", "rescale_start"):
             value = getattr(self, name)
             if not isinstance(value, (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {type(value).__name__} "
@@ -251,6 +258,8 @@ class Protocol:
             del out["smooth_jiggle"], out["smooth_degree"]
         if self.shape_imperfection is None:  # and before the shape imperfection
             del out["shape_imperfection"], out["shape_degree"]
+        if not self.rescale_start:  # and before the scaled start
+            del out["rescale_start"]
         return out
 
     @classmethod
