@@ -36,7 +36,8 @@ What it does:
    the same jiggle (none by default), the same c0-cycle setting, Newton with its default
    convergence test (relative projected gradient ``--tol``, energy change 1e-10, inertia 0),
    and, where a jiggle folds the mesh, its protocol's new jiggle at half the amplitude (which
-   Evolver's side does not have). CPU time per step
+   Evolver's side does not have); with ``--rescale`` both sides start each step from the
+   shell scaled uniformly to its volume (ours: ``rescale_start``). CPU time per step
    is the process time between the run's per-step log records (step 1 includes the run's
    set-up), wall time is the table's ``wall_s``. Our side runs ``--ours-runs`` times (default
    2), alternately before and after Evolver's run, each in a fresh process that first does
@@ -493,7 +494,7 @@ class _StepClock(logging.Handler):
 
 
 def run_ours(mesh, params, schedule, c0_cycle: bool, tol: float, out: Path,
-             temperature: float = 0.0, seed: int = 0) -> dict:
+             temperature: float = 0.0, seed: int = 0, rescale: bool = False) -> dict:
     clock = _StepClock()
     run_logger = logging.getLogger("shellbuckle.run")
     old_level = run_logger.level
@@ -503,7 +504,7 @@ def run_ours(mesh, params, schedule, c0_cycle: bool, tol: float, out: Path,
         cpu0, wall0 = time.process_time(), time.perf_counter()
         run = deflate(mesh, params, schedule=list(schedule), c0_cycle=c0_cycle,
                       temperature=temperature, seed=seed, bending="evolver", tol=tol,
-                      stop_at_contact=False, out=out)
+                      stop_at_contact=False, out=out, rescale_start=rescale)
         cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
     finally:
         run_logger.removeHandler(clock)
@@ -526,7 +527,7 @@ def run_ours(mesh, params, schedule, c0_cycle: bool, tol: float, out: Path,
 
 def _ours_in_child(mesh_kind: str, vertices: int, mesh_seed: int, gamma: float, nu: float,
                    schedule, c0_cycle: bool, tol: float, out: str, temperature: float,
-                   jiggle_seed: int) -> dict:
+                   jiggle_seed: int, rescale: bool = False) -> dict:
     """:func:`run_ours` in a fresh process (``multiprocessing`` spawn), after the same work the
     benchmark's own process does before it (the mesh, its volume and rest form factors, which
     also start Numba), so that every run of our side starts from the same state."""
@@ -534,7 +535,7 @@ def _ours_in_child(mesh_kind: str, vertices: int, mesh_seed: int, gamma: float, 
     Volume(mesh.faces, mesh.n_vertices).value(mesh.X)
     rest_form_factors(mesh.X, mesh.faces)
     return run_ours(mesh, ShellParameters.from_gamma(gamma, nu=nu), schedule, c0_cycle, tol,
-                    Path(out), temperature, jiggle_seed)
+                    Path(out), temperature, jiggle_seed, rescale)
 
 
 def mean_of_runs(runs: list[dict]) -> dict:
@@ -660,8 +661,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-pin", action="store_true",
                     help="Evolver: do not pin the rigid motions (see pin_rigid_motions)")
     ap.add_argument("--rescale", action="store_true",
-                    help="Evolver: scale the shell uniformly to each step's volume before its "
-                         "minimization (a start in Evolver's favour; see evolver_commands)")
+                    help="both sides start each step from the shell scaled uniformly to its "
+                         "volume (Evolver: see evolver_commands; ours: --rescale-start)")
     ap.add_argument("--evolver", default="evolver")
     ap.add_argument("--timeout", type=float, default=6 * 3600.0, help="Evolver time limit (s)")
     ap.add_argument("--ours-runs", type=int, default=2,
@@ -727,7 +728,7 @@ def main(argv=None) -> int:
         def ours_run():
             child = (args.mesh, args.vertices, args.seed, args.gamma, args.nu, schedule,
                      args.c0_cycle, args.tol, str(workdir / f"run{len(runs)}"),
-                     args.temperature, args.jiggle_seed)
+                     args.temperature, args.jiggle_seed, args.rescale)
             with spawn.Pool(1) as pool:
                 runs.append(pool.apply(_ours_in_child, child))
             print(f"# shellbuckle run {len(runs)}: {runs[-1]['total_wall_s']:.1f} s wall, "
@@ -859,7 +860,7 @@ def main(argv=None) -> int:
                "c0_cycle": args.c0_cycle, "temperature": args.temperature,
                "jiggle_seed": args.jiggle_seed, "tol_ours": args.tol, "etol_evolver": args.etol,
                "confirm_evolver": args.confirm, "hessian_normal_evolver": args.hessian_normal,
-               "rescale_evolver": args.rescale,
+               "rescale_evolver": args.rescale, "rescale_ours": args.rescale,
                "pinned_evolver_ids": None if pinned is None else [v + 1 for v in pinned],
                "model_check_rel": model,
                "evolver": se["version"], "shellbuckle": source_version(),
