@@ -68,3 +68,30 @@ def test_the_command_line_stores_the_option(tmp_path):
                  "--rescale-start", "--no-plot", "--no-locate", "--quiet",
                  "--out", str(out)]) == 0
     assert json.loads((out / "run.json").read_text())["protocol"]["rescale_start"] is True
+
+
+def test_a_sweep_with_the_scaled_start_names_and_stores_it(tmp_path):
+    from shellbuckle.sweep import SweepSpec, run_name, run_point
+
+    plain = SweepSpec(gamma=271, icosphere=4, until=0.04)
+    scaled = SweepSpec(gamma=271, icosphere=4, until=0.04, rescale_start=True)
+    assert "rescale_start" not in plain.to_dict()  # sweeps made before keep their record
+    assert SweepSpec.from_dict(scaled.to_dict()) == scaled
+    (p0,), (p1,) = plain.points(), scaled.points()
+    assert "rescale_start" not in p0 and p1["rescale_start"] is True
+    assert run_name(p1) == run_name(p0) + "_rs"
+    with pytest.raises(ValueError, match="rescale_start"):
+        SweepSpec(gamma=271, rescale_start="yes")
+    result = run_point(p1, tmp_path, analyze=False)
+    assert result["outcome"] == "finished"
+    meta = json.loads((tmp_path / p1["name"] / "run.json").read_text())
+    assert meta["protocol"]["rescale_start"] is True
+
+
+def test_the_sweep_command_passes_the_option(tmp_path):
+    out = tmp_path / "s"
+    assert main(["sweep", "--gamma", "271", "--icosphere", "4", "--until", "0.04",
+                 "--rescale-start", "--workers", "1", "--quiet", "--no-analysis",
+                 "--out", str(out)]) == 0
+    (folder,) = [p for p in out.iterdir() if p.name.endswith("_rs")]
+    assert json.loads((folder / "run.json").read_text())["protocol"]["rescale_start"] is True

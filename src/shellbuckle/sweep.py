@@ -177,7 +177,9 @@ class SweepSpec:
       (the classical buckling band, degree ``ceil(l_c) + 1``).
 
     ``tol`` (minimizer tolerance), ``max_iter`` (iterations per minimization; a small budget
-    with ``method = "cg"`` quenches, see docs/protocol.md) and ``stop_at_contact`` are the same
+    with ``method = "cg"`` quenches, see docs/protocol.md), ``stop_at_contact`` and
+    ``rescale_start`` (each volume step starts from the last minimum scaled to the new
+    volume, :class:`~shellbuckle.protocol.spec.Protocol`; runs named ``..._rs``) are the same
     for every run. Each value
     is checked here (ValueError naming it); a combination that cannot run (``until < dv`` for
     one pair) fails that run only, unless no pair of ``dv`` and ``until`` can run at all.
@@ -204,6 +206,7 @@ class SweepSpec:
     tol: float = 1e-9
     max_iter: int = DEFAULT_MAX_ITER
     stop_at_contact: bool = True
+    rescale_start: bool = False
 
     def __post_init__(self):
         put = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
@@ -255,6 +258,8 @@ class SweepSpec:
         put("max_iter", _integer("max_iter", self.max_iter, 1, "integers >= 1"))
         if not isinstance(self.stop_at_contact, bool):
             raise ValueError(f"stop_at_contact must be true or false, got {self.stop_at_contact!r}")
+        if not isinstance(self.rescale_start, bool):
+            raise ValueError(f"rescale_start must be true or false, got {self.rescale_start!r}")
         if not any(u >= d for d in self.dv for u in self.until):
             raise ValueError(f"no run has a volume step: every until {list(self.until)} is "
                              f"smaller than every dv {list(self.dv)}; allowed: until >= dv")
@@ -432,6 +437,8 @@ class SweepSpec:
                 del out[name]
         if self.shape_imperfection == (None,) and self.shape_imperfection_d == (None,):
             del out["shape_degree"]
+        if not self.rescale_start:
+            del out["rescale_start"]
         return out
 
     # ------------------------------------------------------------------ the grid
@@ -466,6 +473,8 @@ class SweepSpec:
                          "stop_at_contact": self.stop_at_contact}
                 if a is not None:  # only then: the points of earlier sweeps keep their keys
                     point.update(smooth_jiggle=a, smooth_degree=L)
+                if self.rescale_start:  # so too here
+                    point.update(rescale_start=True)
                 if shape is not None:
                     point.update(shape_imperfection=shape, shape_degree=shape_L)
                 if shape_d is not None:
@@ -489,7 +498,7 @@ def run_name(point: dict) -> str:
     ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>`` or ``_sj<smooth_jiggle>[_L<degree>]``,
     ``_si<shape_imperfection>`` or ``_sid<shape_imperfection_d>``, then ``[_Ls<degree>]``,
     ``_<bending>``, ``_<method>``,
-    ``_it<max_iter>``, ``_<energy convention>``), e.g. ``g2333_nu0.333_v3594_s0``
+    ``_it<max_iter>``, ``_<energy convention>``, ``_rs`` for the scaled start), e.g. ``g2333_nu0.333_v3594_s0``
     or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
     a run keeps its folder when the sweep grows."""
     mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
@@ -522,6 +531,8 @@ def run_name(point: dict) -> str:
         name += f"_it{point['max_iter']}"
     if point.get("energy_convention", "helfrich") != "helfrich":
         name += f"_{point['energy_convention']}"
+    if point.get("rescale_start"):
+        name += "_rs"
     return name
 
 
@@ -600,6 +611,7 @@ def _deflate(point: dict, folder: Path):
                            seed=point["seed"], bending=point["bending"], method=point["method"],
                            tol=point["tol"], max_iter=point.get("max_iter", DEFAULT_MAX_ITER),
                            stop_at_contact=point["stop_at_contact"],
+                           rescale_start=point.get("rescale_start", False),
                            out=folder, progress=False)
         except ValueError:
             if not _writer_active(folder):

@@ -83,6 +83,10 @@ def register(sub) -> None:
     parser.add_argument("--no-analysis", action="store_true",
                         help="do not classify the steps of finished runs (no thresholds or W)")
     parser.add_argument("--no-retry", action="store_true", help="do not rerun failed runs")
+    parser.add_argument("--rescale-start", action="store_true",
+                        help="every run starts each volume step from the last minimum scaled "
+                             "uniformly to the new volume (faster on fine meshes; runs named "
+                             "..._rs; see deflate --rescale-start)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="sweep folder: new (in an existing folder), empty, or a previous "
@@ -102,6 +106,8 @@ def _cmd(args) -> int:
         given["shape_degree"] = shape_degrees(args.shape_degree)
     if args.no_c0_cycle:
         given["c0_cycle"] = False
+    if args.rescale_start:
+        given["rescale_start"] = True
     workers = _workers(args)
     scheduler_address("--scheduler", args.scheduler)
     defaults = {"gamma": [default_gamma()]}  # the one default gamma of the command line
