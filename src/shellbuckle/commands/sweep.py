@@ -85,8 +85,8 @@ def register(sub) -> None:
     parser.add_argument("--no-retry", action="store_true", help="do not rerun failed runs")
     parser.add_argument("--rescale-start", action="store_true",
                         help="every run starts each volume step from the last minimum scaled "
-                             "uniformly to the new volume (faster on fine meshes; runs named "
-                             "..._rs; see deflate --rescale-start)")
+                             "uniformly to the new volume (faster before buckling on fine "
+                             "meshes; runs named ..._rs; see deflate --rescale-start)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="sweep folder: new (in an existing folder), empty, or a previous "
