@@ -57,6 +57,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
+from shellbuckle.protocol.deflate import scaled_to_volume  # noqa: E402
 from shellbuckle.protocol.stored import stored_context  # noqa: E402
 from shellbuckle.solve.gauge import free_dofs, pinned_dofs, remove_rigid, rigid_modes  # noqa: E402
 from shellbuckle.solve.kkt import KKTAssembler  # noqa: E402
@@ -117,9 +118,7 @@ class Tangent:
 
 def real_rhs(run, ctx, t: Tangent, k: int):
     """``-P r`` at step ``k - 1``'s minimum rescaled about its centroid to step ``k``'s volume."""
-    X = run.positions(k - 1)
-    c = X.mean(axis=0)
-    X = c + (X - c) * (t.V / float(ctx.volume.value(X))) ** (1.0 / 3.0)
+    X = scaled_to_volume(ctx.volume, run.positions(k - 1), t.V)
     _, r = projected_gradient(ctx.energy.gradient(X), ctx.volume.gradient(X))
     return t.P(-r.ravel())
 

@@ -14,9 +14,10 @@ stored bits) as the protocol makes it, then from a predicted start.
   ``y0`` itself, made stationary by the linear term ``-tau . y``, ``tau = grad E_c(y0) - p
   grad V_c(y0)`` (``p`` fitted by least squares).
 - ``--rescale``: the last minimum scaled uniformly about its centroid to the new volume
-  (exactly: a volume scales as the cube of the factor). The protocol's start is the last
-  minimum moved along the volume gradient to the new volume, which is proportional to each
-  vertex's area: on a randomized mesh its radial move is as uneven as the vertex areas.
+  (:func:`shellbuckle.protocol.deflate.scaled_to_volume`, the protocol's ``rescale_start``).
+  The protocol's own start is the last minimum moved along the volume gradient to the new
+  volume, which is proportional to each vertex's area: on a randomized mesh its radial move
+  is as uneven as the vertex areas.
 - ``--substeps m``: continuation in smaller volume steps: ``m - 1`` minimizations at evenly
   spaced volumes between the two steps' (uncertified, each from the last), then the protocol's
   step from there.
@@ -106,13 +107,6 @@ def substep_start(ctx, X, dv_from: float, dv_to: float, m: int):
     return X, nit
 
 
-def rescaled_start(ctx, X, dv_to: float):
-    """``X`` scaled about its centroid to the volume ``V0 (1 - dv_to)``."""
-    c = X.mean(axis=0)
-    f = (ctx.V0 * (1.0 - dv_to) / ctx.volume.value(X)) ** (1.0 / 3.0)
-    return c + f * (X - c), 0
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", help="a finished deflation run folder")
@@ -157,7 +151,9 @@ def main() -> None:
             elif name == "coarse":
                 X, nit = coarse_start(run, coarse_ctx, X_prev, dv_from, dv_to, args.tilt)
             elif name == "rescale":
-                X, nit = rescaled_start(step.ctx, X_prev, dv_to)
+                X = protocol.scaled_to_volume(step.ctx.volume, X_prev,
+                                              step.ctx.V0 * (1.0 - dv_to))
+                nit = 0
             else:
                 X, nit = substep_start(step.ctx, X_prev, dv_from, dv_to, m)
             calls.clear()

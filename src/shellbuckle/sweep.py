@@ -498,9 +498,9 @@ def run_name(point: dict) -> str:
     ``_noc0``, ``_j<jiggle>`` or ``_T<temperature>`` or ``_sj<smooth_jiggle>[_L<degree>]``,
     ``_si<shape_imperfection>`` or ``_sid<shape_imperfection_d>``, then ``[_Ls<degree>]``,
     ``_<bending>``, ``_<method>``,
-    ``_it<max_iter>``, ``_<energy convention>``, ``_rs`` for the scaled start), e.g. ``g2333_nu0.333_v3594_s0``
-    or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the run's own parameters only, so
-    a run keeps its folder when the sweep grows."""
+    ``_it<max_iter>``, ``_<energy convention>``, ``_rs`` for the scaled start), e.g.
+    ``g2333_nu0.333_v3594_s0`` or ``g271_nu0.333_ico4_s1_until0.2_noc0``. It depends on the
+    run's own parameters only, so a run keeps its folder when the sweep grows."""
     mesh = f"v{point['n_vertices']}" if point["mesh"] == "random" else f"ico{point['icosphere']}"
     name = f"g{_fmt(point['gamma'])}_nu{_fmt(point['nu'], 3)}_{mesh}_s{point['seed']}"
     if point["dv"] != PAPER_DV:
@@ -694,9 +694,9 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
     ``finished``, ``paused``, ``failed``, ``analysis failed`` or ``location failed`` (the run
     is finished, the classification of its steps or the location of its events raised; the
     next sweep retries it). A sweep stopped while the task ran ends its attempt with the
-    outcome ``interrupted`` (:func:`sweep_client`). The attempt is logged in ``out_dir/logs/<name>.json`` (and the
-    traceback of a failure beside it). This is the Dask task of :func:`run_sweep`; it also runs
-    on its own.
+    outcome ``interrupted`` (:func:`sweep_client`). The attempt is logged in
+    ``out_dir/logs/<name>.json`` (and the traceback of a failure beside it). This is the Dask
+    task of :func:`run_sweep`; it also runs on its own.
     """
     out_dir = Path(out_dir)
     name = point["name"]
@@ -1077,16 +1077,19 @@ def _mark_stopped(out_dir: Path, names, exc: BaseException, since: str) -> None:
             status = None
             if (folder / RUN_JSON).exists():
                 store = RunStore.open(folder)
-                status = store.status
-                if status == "running":
-                    if store.writer_active:
-                        continue
-                    where = ("before step 0 was stored" if store.last_step is None
-                             else f"after step {store.last_step}")
-                    status = "interrupted"
-                    store.set_status(status, f"{why} with the sweep {where}; the same sweep "
-                                     f"command or `shellbuckle resume {folder}` continues it")
-                store.close()
+                try:
+                    status = store.status
+                    if status == "running":
+                        if store.writer_active:
+                            continue
+                        where = ("before step 0 was stored" if store.last_step is None
+                                 else f"after step {store.last_step}")
+                        status = "interrupted"
+                        store.set_status(status, f"{why} with the sweep {where}; the same "
+                                         f"sweep command or `shellbuckle resume {folder}` "
+                                         "continues it")
+                finally:
+                    store.close()
             now_last = read_attempts(out_dir, name)[-1:]
             if now_last and _same_attempt(now_last[0], last):  # nobody began another since
                 record_attempt(out_dir, name, last | {
