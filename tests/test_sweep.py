@@ -802,33 +802,41 @@ def _dead_pid() -> int:
     return int(done.stdout)
 
 
-def test_a_stopped_sweep_marks_only_the_attempts_it_began_whose_process_ended(tmp_path):
-    # what an earlier sweep, killed outright, left open is not this sweep's to end, nor what a
-    # live process (another sweep on the same folder) still works on
+def _left_by_a_killed_worker(out: Path, seed: int, started: str, pid: int) -> str:
+    """A run of the sweep folder ``out`` as a worker killed in the middle of it leaves it: two
+    steps stored, run.json "running", its attempt (begun at ``started`` by process ``pid`` of
+    this host) open. Returns its name."""
     import socket
 
     from shellbuckle.mesh import icosphere
     from shellbuckle.params import ShellParameters
     from shellbuckle.run import deflate
-    from shellbuckle.store.catalogue import read_attempts, record_attempt
+    from shellbuckle.store.catalogue import record_attempt
     from shellbuckle.store.run import RunStore
+
+    (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
+    deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
+            out=out / point["name"], max_steps=2)
+    store = RunStore.open(out / point["name"])
+    store.set_status("running")
+    store.close()
+    record_attempt(out, point["name"], {"started": started, "ended": None,
+                                        "host": socket.gethostname(), "pid": pid,
+                                        "outcome": "running", "message": None})
+    return point["name"]
+
+
+def test_a_stopped_sweep_marks_only_the_attempts_it_began_whose_process_ended(tmp_path):
+    # what an earlier sweep, killed outright, left open is not this sweep's to end, nor what a
+    # live process (another sweep on the same folder) still works on
+    from shellbuckle.store.catalogue import read_attempts
     from shellbuckle.sweep import _mark_stopped
 
-    names = []
-    host, dead = socket.gethostname(), _dead_pid()
-    for seed, started, pid in ((0, "2026-01-01T00:00:00+00:00", dead),
-                               (1, "2026-01-01T00:00:09+00:00", os.getpid()),
-                               (2, "2026-01-01T00:00:09+00:00", dead)):
-        (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
-        deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
-                out=tmp_path / point["name"], max_steps=2)
-        store = RunStore.open(tmp_path / point["name"])
-        store.set_status("running")  # as a killed worker leaves it
-        store.close()
-        record_attempt(tmp_path, point["name"], {"started": started, "ended": None,
-                                                 "host": host, "pid": pid,
-                                                 "outcome": "running", "message": None})
-        names.append(point["name"])
+    dead = _dead_pid()
+    names = [_left_by_a_killed_worker(tmp_path, seed, started, pid)
+             for seed, started, pid in ((0, "2026-01-01T00:00:00+00:00", dead),
+                                        (1, "2026-01-01T00:00:09+00:00", os.getpid()),
+                                        (2, "2026-01-01T00:00:09+00:00", dead))]
     _mark_stopped(tmp_path, names, KeyboardInterrupt(), since="2026-01-01T00:00:05+00:00")
     earlier, alive, ours = names
     for name in (earlier, alive):
@@ -843,27 +851,10 @@ def test_a_stopped_sweep_marks_only_the_attempts_it_began_whose_process_ended(tm
 
 def test_a_run_that_cannot_be_marked_does_not_hide_the_interrupt_nor_stop_the_others(
         tmp_path, caplog):
-    import socket
-
-    from shellbuckle.mesh import icosphere
-    from shellbuckle.params import ShellParameters
-    from shellbuckle.run import deflate
-    from shellbuckle.store.catalogue import record_attempt
-    from shellbuckle.store.run import RunStore
     from shellbuckle.sweep import _mark_stopped
 
-    names = []
-    for seed in (0, 1):
-        (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=seed).points()
-        deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1, seed=seed,
-                out=tmp_path / point["name"], max_steps=2)
-        store = RunStore.open(tmp_path / point["name"])
-        store.set_status("running")
-        store.close()
-        record_attempt(tmp_path, point["name"], {"started": "2026-01-01T00:00:09+00:00",
-                                                 "host": socket.gethostname(),
-                                                 "pid": _dead_pid(), "outcome": "running"})
-        names.append(point["name"])
+    names = [_left_by_a_killed_worker(tmp_path, seed, "2026-01-01T00:00:09+00:00", _dead_pid())
+             for seed in (0, 1)]
     (tmp_path / names[0] / "run.json").write_text("{damaged")
     with caplog.at_level("WARNING"):
         _mark_stopped(tmp_path, names, KeyboardInterrupt(), since="2026-01-01T00:00:05+00:00")
@@ -873,13 +864,7 @@ def test_a_run_that_cannot_be_marked_does_not_hide_the_interrupt_nor_stop_the_ot
 
 def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
     # the context the paper's reproduction and the convention study run their sweeps in
-    import socket
-
-    from shellbuckle.mesh import icosphere
-    from shellbuckle.params import ShellParameters
-    from shellbuckle.run import deflate
-    from shellbuckle.store.catalogue import read_attempts, record_attempt
-    from shellbuckle.store.run import RunStore
+    from shellbuckle.store.catalogue import read_attempts
     from shellbuckle.sweep import _runs, sweep_client
     from shellbuckle.util import now
 
@@ -890,14 +875,7 @@ def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
         with sweep_client(None, 1, folders):
             for folder in folders[:2]:  # what a worker leaves when it is killed mid-run
                 write_sweep_file(folder, spec.to_dict(), _runs([point]))
-                deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.1,
-                        out=folder / point["name"], max_steps=2)
-                store = RunStore.open(folder / point["name"])
-                store.set_status("running")
-                store.close()
-                record_attempt(folder, point["name"], {
-                    "started": now(), "ended": None, "host": socket.gethostname(),
-                    "pid": _dead_pid(), "outcome": "running"})
+                assert _left_by_a_killed_worker(folder, 0, now(), _dead_pid()) == point["name"]
             raise KeyboardInterrupt
     for folder in folders[:2]:
         assert _status(folder, point["name"]) == "interrupted"
