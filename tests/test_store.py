@@ -292,6 +292,62 @@ def test_sigkill_at_random_moments_never_loses_or_corrupts_a_step(tmp_path, kill
         assert killed_mid_write > 0
 
 
+def test_a_run_killed_outright_reads_interrupted_while_its_writer_lives_it_reads_running(
+        tmp_path):
+    # run.json of a killed run keeps "running" (nothing could write its status); whether a
+    # process still writes it is what the writer lock tells
+    script = tmp_path / "writer.py"
+    script.write_text(WRITER_SCRIPT)
+    folder = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, str(script), str(folder)],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().split() == ["ready", "0"]
+        while RunStore.open(folder).last_step is None:
+            time.sleep(0.01)
+        assert RunStore.open(folder).current_status() == ("running", None)  # it is written
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        proc.stdout.close()
+    text = (folder / "run.json").read_bytes()
+    store = RunStore.open(folder)
+    status, message = store.current_status()
+    assert store.status == "running" and status == "interrupted"
+    assert f"after step {store.last_step};" in message
+    assert f"`shellbuckle resume {folder}` continues it" in message
+    assert (folder / "run.json").read_bytes() == text  # asking writes nothing
+    with RunStore.resume(folder) as writer:  # its own writer: running
+        assert writer.current_status() == ("running", None)
+        assert RunStore.open(folder).current_status() == ("running", None)
+
+
+def test_a_run_that_ends_while_its_status_is_asked_reads_as_it_ended(tmp_path):
+    folder = tmp_path / "run"
+    writer = _create(folder)
+    writer.append_step(0, writer.X0, _record(0))
+    reader = RunStore.open(folder)  # its run.json said "running" when it was read
+    writer.set_status("finished", "reached the target volume")
+    writer.close()
+    assert reader.status == "running"
+    assert reader.current_status() == ("finished", "reached the target volume")
+
+
+def test_a_status_that_cannot_be_probed_is_the_stored_one(tmp_path, monkeypatch):
+    # a read-only copy of a run folder: the lock file cannot be opened for the probe
+    from shellbuckle.store.atomic import FileLock
+
+    folder = tmp_path / "run"
+    with _create(folder) as store:
+        store.append_step(0, store.X0, _record(0))
+
+    def refused(self, patience=0.1):
+        raise PermissionError(13, "Permission denied", str(self.path))
+
+    monkeypatch.setattr(FileLock, "is_held_elsewhere", refused)
+    assert RunStore.open(folder).current_status() == ("running", None)
+
+
 @pytest.mark.skipif(not Path("/proc/self/fd").exists(), reason="needs /proc")
 def test_sigkill_inside_a_step_write_keeps_the_previous_steps_and_resumes(tmp_path):
     script = tmp_path / "writer.py"

@@ -862,6 +862,35 @@ def test_a_run_that_cannot_be_marked_does_not_hide_the_interrupt_nor_stop_the_ot
     assert _status(tmp_path, names[1]) == "interrupted"
 
 
+def test_a_run_killed_outright_with_its_sweep_is_listed_interrupted_until_resumed(
+        tmp_path, capsys):
+    # a sweep killed outright (SIGKILL, a power cut) could mark nothing: run.json says
+    # "running"; the catalogue, the run's view and the commands say what it is
+    from shellbuckle.commands._output import report_run
+    from shellbuckle.run import Run
+    from shellbuckle.store.run import RunStore
+    from shellbuckle.sweep import _runs
+
+    spec = SweepSpec(gamma=271, icosphere=3, until=0.1)
+    (point,) = spec.points()
+    write_sweep_file(tmp_path, spec.to_dict(), _runs([point]))
+    name = _left_by_a_killed_worker(tmp_path, 0, "2026-01-01T00:00:09+00:00", _dead_pid())
+    assert _status(tmp_path, name) == "running"
+    catalogue = Catalogue(tmp_path)
+    row = catalogue.write().iloc[0]
+    assert row["status"] == "interrupted" and "after step 2;" in row["message"]
+    assert "shellbuckle resume" in row["message"]
+    assert pd.read_csv(tmp_path / CATALOGUE_CSV)["status"].tolist() == ["interrupted"]
+    run = Run.open(tmp_path / name)
+    assert run.status == "interrupted" and "no process writes the run" in run.message
+    report_run(run)
+    assert "status: interrupted (run.json says running" in capsys.readouterr().out
+    with RunStore.resume(tmp_path / name):  # a live writer again: running, the cache asks anew
+        assert catalogue.frame()["status"].tolist() == ["running"]
+        assert Run.open(tmp_path / name).status == "running"
+    assert catalogue.frame()["status"].tolist() == ["interrupted"]
+
+
 def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
     # the context the paper's reproduction and the convention study run their sweeps in
     from shellbuckle.store.catalogue import read_attempts

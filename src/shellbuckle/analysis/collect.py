@@ -207,6 +207,7 @@ def collect_run(folder, *, store_analysis: bool = False,
     params, protocol = meta.get("params", {}), meta.get("protocol", {})
     table, source = analysed_table(run, store=store_analysis)
     dv, until = _schedule_numbers(protocol)
+    status, message = run.store.current_status()  # a run killed outright: interrupted
     parent = meta.get("parent")
     row = dict.fromkeys(COLUMNS)
     row.update(path=str(Path(folder).resolve()), name=Path(folder).resolve().name,
@@ -222,8 +223,8 @@ def collect_run(folder, *, store_analysis: bool = False,
                shape_degree=protocol.get("shape_degree"),
                c0_cycle=protocol.get("c0_cycle"), method=protocol.get("method"),
                bending=protocol.get("bending"), control=protocol.get("control", "volume"),
-               dv=dv, until=until, status=meta.get("status"), message=meta.get("message"),
-               stop_reason=stop_reason(meta.get("status"), meta.get("message")),
+               dv=dv, until=until, status=status, message=message,
+               stop_reason=stop_reason(status, message),
                analysis=source, W_steps=0)
     if table.empty:
         return row, table

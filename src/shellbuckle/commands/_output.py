@@ -13,7 +13,8 @@ def report_run(run, *, plot: bool = False) -> int:
     k = run.store.last_step  # its record, not the table: pandas is not needed to say it
     last = {"step": k, **run.store.record(k)}
     print(f"run folder: {run.path}")
-    print(f"status: {run.status} ({run.store.meta.get('message')})")
+    status, message = run.store.current_status()
+    print(f"status: {status} ({message})")
     if run.protocol.control in ("gamma", "c0"):
         print(f"steps: {int(last['step'])}, gamma = {run.params_at(-1).gamma:.6g}, "
               f"c0 = {run.c0_at(-1):.6g}, dV/V = {last['dV_over_V']:.4f}, "

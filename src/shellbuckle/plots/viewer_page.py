@@ -157,8 +157,7 @@ def _payload(run, color: str, step: int = -1) -> dict:
     center = 0.5 * (lo + hi)
     radius = float(np.linalg.norm(P - center, axis=2).max()) or 1.0
     params, protocol = run.params, run.protocol
-    status = run.status
-    message = run.store.meta.get("message")
+    status, message = run.store.current_status()
     title = f"shellbuckle run {Path(run.path).name}"
     subtitle = (f"γ = {params.gamma:.6g}, ν = {params.nu:.4g}, κ = {params.kappa:.4g}, "
                 f"R = {params.R:.4g}, c0 = {c0:.4g} (c = c1 + c2), "

@@ -127,15 +127,15 @@ class FileLock:
     def held(self) -> bool:
         return self._fd is not None
 
-    def acquire(self, blocking: bool = False) -> bool:
+    def acquire(self, blocking: bool = False, patience: float = PROBE_PATIENCE_S) -> bool:
         """Take the lock; return False if another holder has it and ``blocking`` is False
-        (after trying again for :data:`PROBE_PATIENCE_S`: another process may only be asking
+        (after trying again for ``patience`` seconds: another process may only be asking
         whether it is held)."""
         if self._fd is not None:
             return True
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         if fcntl is not None:
-            deadline = time.monotonic() + PROBE_PATIENCE_S
+            deadline = time.monotonic() + patience
             while True:
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
@@ -153,12 +153,14 @@ class FileLock:
             fd, self._fd = self._fd, None
             os.close(fd)  # closing the descriptor drops the flock
 
-    def is_held_elsewhere(self) -> bool:
-        """True if some other open lock (another process or object) holds ``path`` now."""
+    def is_held_elsewhere(self, patience: float = PROBE_PATIENCE_S) -> bool:
+        """True if some other open lock (another process or object) holds ``path`` now.
+        With ``patience=0`` one try: quick where a holder is alive, and a lock that is only
+        being probed by another reader counts as held."""
         if self._fd is not None or fcntl is None or not self.path.exists():
             return False
         probe = FileLock(self.path)
-        if probe.acquire():
+        if probe.acquire(patience=patience):
             probe.release()
             return False
         return True

@@ -29,7 +29,9 @@ Columns (:data:`COLUMNS`):
   ``shape_imperfection``, ``shape_degree`` (the shell's own, in units of R; empty where
   unset), ``shape_imperfection_d`` (the amplitude in units of d the sweep gave, if it did),
   ``bending``, ``method``, ``energy_convention``;
-- ``status``: the run's status (running, paused, finished, failed, interrupted), ``pending``
+- ``status``: the run's status (running, paused, finished, failed, interrupted; a run whose
+  run.json says running while no process writes it was stopped outright and is listed as
+  interrupted, :meth:`~shellbuckle.store.run.RunStore.current_status`), ``pending``
   for a run not started, ``failed`` for a run whose last attempt failed before its folder was
   written or whose worker died; ``message`` (the run's, and, where the last attempt's
   analysis or location of a finished run failed and that failure stands, the failure's);
@@ -383,7 +385,8 @@ def run_row(out_dir, name: str, point: dict) -> dict:
         except ValueError as exc:
             row.update(_parameters(point, meta), status="failed", message=str(exc))
             return row
-        row.update(_parameters(point, meta), status=meta["status"], message=meta.get("message"))
+        status, message = store.current_status()  # a run killed outright: interrupted
+        row.update(_parameters(point, meta), status=status, message=message)
         damaged = store.damaged  # left out of the table: say so where the sweep looks
         if damaged:
             note = ("damaged step(s) left out: "
@@ -462,7 +465,8 @@ class Catalogue:
         for name, point in runs.items():
             signature = _signature(self.out_dir, name)
             cached = self._rows.get(name)
-            if cached is None or cached[0] != signature:
+            if cached is None or cached[0] != signature or cached[1]["status"] == "running":
+                # (a live run is asked again: its process may have died since)
                 cached = self._rows[name] = (signature, run_row(self.out_dir, name, point))
             rows.append(cached[1])
         return _typed(pd.DataFrame(rows, columns=list(COLUMNS)))

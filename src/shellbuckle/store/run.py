@@ -427,6 +427,35 @@ class RunStore:
         """
         return self._writer.is_held_elsewhere()
 
+    def current_status(self) -> tuple[str, str | None]:
+        """``(status, message)`` as they stand now: run.json's, except that a run whose
+        run.json says "running" while no process holds its writer lock was stopped outright
+        (SIGKILL, out of memory, a machine that went down; nothing could write its status)
+        and is reported ``"interrupted"``, with a message saying so and how to continue.
+
+        The lock is probed once, without waiting (a reader probing it at that moment makes
+        the run count as live), then run.json is read again, so that a run which ended
+        between the two reads is reported as it ended. Where the lock cannot be probed (a
+        read-only copy of the folder) the stored status is reported."""
+        status, message = self._meta["status"], self._meta.get("message")
+        if status != "running" or self._writer.held:
+            return status, message
+        try:
+            if self._writer.is_held_elsewhere(patience=0.0):
+                return status, message
+            meta = json.loads((self._path / RUN_JSON).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return status, message
+        if not isinstance(meta, dict) or meta.get("status") not in STATUSES:
+            return status, message
+        if meta["status"] != "running":
+            return meta["status"], meta.get("message")
+        after = f" after step {self.last_step}" if self.last_step is not None else ""
+        return "interrupted", (
+            f"run.json says running, but no process writes the run: it was stopped outright "
+            f"(killed, out of memory, or its machine went down){after}; `shellbuckle resume "
+            f"{self._path}` continues it")
+
     # ------------------------------------------------------------------ mesh
 
     def _mesh(self):

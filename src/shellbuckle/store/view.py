@@ -212,7 +212,16 @@ class Run:
 
     @property
     def status(self) -> str:
-        return self.store.status
+        """The run's status: run.json's (running, paused, finished, failed, interrupted),
+        except ``"interrupted"`` for a run whose run.json says running while no process
+        writes it: it was stopped outright, and resuming continues it
+        (:meth:`~shellbuckle.store.run.RunStore.current_status`)."""
+        return self.store.current_status()[0]
+
+    @property
+    def message(self) -> str | None:
+        """What the run's status says (why it stopped, failed or was interrupted), or None."""
+        return self.store.current_status()[1]
 
     def __repr__(self):
         return f"Run({str(self.path)!r}, status={self.status!r}, steps={len(self.steps)})"
