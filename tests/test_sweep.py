@@ -891,6 +891,27 @@ def test_a_run_killed_outright_with_its_sweep_is_listed_interrupted_until_resume
     assert catalogue.frame()["status"].tolist() == ["interrupted"]
 
 
+def test_the_next_attempt_ends_the_attempts_whose_process_was_killed(tmp_path):
+    # what a worker killed outright leaves open in logs/ (outcome "running") is ended with the
+    # outcome "killed" when the run's next attempt begins; an open attempt whose process lives
+    # (or ran on another host) is not touched
+    from shellbuckle.store.catalogue import read_attempts, record_attempt
+
+    dead = _dead_pid()
+    name = _left_by_a_killed_worker(tmp_path, 0, "2026-01-01T00:00:09+00:00", dead)
+    record_attempt(tmp_path, name, {"started": "2026-01-01T00:00:10+00:00", "ended": None,
+                                    "host": "elsewhere", "pid": dead, "outcome": "running"})
+    (point,) = SweepSpec(gamma=271, icosphere=3, until=0.1, seeds=0).points()
+    assert point["name"] == name
+    result = run_point(point, tmp_path, analyze=False)
+    assert result["outcome"] == "finished"
+    killed, remote, last = read_attempts(tmp_path, name)
+    assert killed["outcome"] == "killed" and killed["ended"] is None
+    assert f"pid {dead} on " in killed["message"] and "killed outright" in killed["message"]
+    assert remote["outcome"] == "running"  # its process cannot be asked from here
+    assert last["outcome"] == "finished" and last["pid"] == os.getpid()
+
+
 def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
     # the context the paper's reproduction and the convention study run their sweeps in
     from shellbuckle.store.catalogue import read_attempts

@@ -712,7 +712,7 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
                "action": state if state in ("analyze", "locate") else "deflate",
                "outcome": "running",
                "status": None, "message": None}
-    record_attempt(out_dir, name, attempt)
+    record_attempt(out_dir, name, attempt, earlier=_ended_if_killed)
     tb = None
     try:
         from .run import Run
@@ -1043,6 +1043,19 @@ def _process_gone(attempt: dict) -> bool:
     except OSError:  # it exists (another user's, e.g. a reused pid)
         return False
     return False
+
+
+def _ended_if_killed(attempt: dict) -> dict:
+    """``attempt`` ended with the outcome ``killed`` if it is still open (outcome "running")
+    while its process, on this host, has ended: it was killed outright (SIGKILL, out of
+    memory, the machine stopped) and could not end it; otherwise ``attempt`` as it is. When
+    it ended is not known (``ended`` stays None)."""
+    if attempt.get("outcome") != "running" or not _process_gone(attempt):
+        return attempt
+    return attempt | {"outcome": "killed", "message": (
+        f"its process (pid {attempt.get('pid')} on {attempt.get('host')}) ended without "
+        "ending this attempt: killed outright (SIGKILL, out of memory, or the machine "
+        "stopped); found when a later attempt began")}
 
 
 def _same_attempt(a: dict, b: dict) -> bool:

@@ -227,18 +227,21 @@ def read_attempts(out_dir, name: str) -> list[dict]:
 
 
 def record_attempt(out_dir, name: str, attempt: dict, *, replace_last: bool = False,
-                   traceback: str | None = None) -> None:
+                   traceback: str | None = None, earlier=None) -> None:
     """Append ``attempt`` to ``logs/<name>.json`` (or replace the last one), atomically (a
     damaged log is first set aside as ``<name>.json.damaged-<n>``).
 
-    ``traceback`` (text) is written to ``logs/<name>.traceback.txt``. One task works on a run
-    at a time, so the read-modify-write needs no lock.
+    ``traceback`` (text) is written to ``logs/<name>.traceback.txt``. ``earlier``: a function
+    the attempts already logged are passed through first (to end those whose process was
+    killed). One task works on a run at a time, so the read-modify-write needs no lock.
     """
     path = attempts_path(out_dir, name)
     path.parent.mkdir(parents=True, exist_ok=True)
     attempts, damaged = _damaged_attempts(path)
     if damaged:  # kept beside, never deleted, as a damaged step is
         log.warning("%s; set aside as %s, and a new log begun", damaged, set_aside(path).name)
+    if earlier is not None:
+        attempts = [earlier(a) for a in attempts]
     if replace_last and attempts:
         attempts[-1] = attempt
     else:
