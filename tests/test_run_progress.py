@@ -4,7 +4,8 @@ Oracles: how the run ended (its status and the steps stored: a run that ends ear
 100 % with the total set to the steps done; a paused one shows the steps done out of the
 schedule's), the classical buckling pressure p_c = 4 sqrt(kappa A)/R^2 = 4 sqrt(gamma) at
 kappa = R = 1 (Quilliet et al. 2008, eq. 3; the unit of the run figure), and the step's
-record (converged, inertia) for the closing line.
+record (converged, inertia) for the closing line; within a step, the record's iterations (the
+count the minimizers report, one per accepted step) and the energy falling at each of them.
 """
 
 from __future__ import annotations
@@ -131,3 +132,67 @@ def test_a_step_with_fold_warnings_ends_with_one_line_on_its_minimum(tmp_path, m
 def test_the_closing_line_follows_the_record(record, words):
     line = run_mod._fold_verdict(7, record)
     assert line.startswith("step 7 ") and words in line and "\n" not in line
+
+
+# ------------------------------------------------------------------ within a step
+
+def test_the_bar_counts_within_a_step_the_iterations_its_record_stores(tmp_path, monkeypatch,
+                                                                       capsys):
+    # every accepted step of every minimization of a step (relaxation, Newton, the c0 cycle's
+    # two, the jiggles made again) reaches the bar once: the count equals the record's
+    counted = []
+    real_update = run_mod._Progress.update
+
+    def update(self, X, record):
+        counted.append((self.step, self.iterations, record["iterations"]))
+        real_update(self, X, record)
+
+    monkeypatch.setattr(run_mod._Progress, "update", update)
+    monkeypatch.setattr(run_mod._Progress, "EVERY_S", 0.0)  # show every iteration
+    run = _deflate(tmp_path, temperature=0.01)
+    assert [k for k, _, _ in counted] == run.steps[1:]
+    assert all(ours == stored > 0 for _, ours, stored in counted), counted
+    frames = [f for f in re.split(r"[\r\n]", capsys.readouterr().err) if " it, 0:" in f]
+    assert frames and all(re.search(r"step [1-6]: \d+ it, 0:\d\d\]\s*$", f) for f in frames)
+    # after the first step, beside what the last step ended with
+    assert any(re.search(r"W=\d \| step [2-6]: ", f) for f in frames)
+
+
+def test_a_listener_hears_each_accepted_step_and_its_energy_and_only_its_own_thread(tmp_path):
+    import threading
+
+    import numpy as np
+
+    from shellbuckle.energies.total import ShellEnergy
+    from shellbuckle.energies.volume import Volume
+    from shellbuckle.solve.listen import listening
+    from shellbuckle.solve.newton import newton
+
+    mesh = icosphere(3)
+    params = ShellParameters.from_gamma(GAMMA)
+    energy = ShellEnergy.build(mesh, params, c0=2.0 / params.R)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    V = 0.9 * volume.value(mesh.X)
+    start = mesh.X + 0.01 * np.random.default_rng(3).standard_normal(mesh.X.shape)
+
+    def minimize():
+        return newton(energy, volume, start, V, precondition_at=mesh.X)
+
+    heard, results = [], {}
+    thread = threading.Thread(target=lambda: results.update(other=minimize()))
+    with listening(lambda E, r: heard.append(E)):
+        thread.start()  # a thread of its own: its context has no listener
+        result = minimize()
+        thread.join()
+    assert len(heard) == result.nit > 10
+    assert heard[-1] == result.fun
+    # each accepted step lowers the energy (to round-off near the minimum)
+    assert all(b <= a + 1e-13 * abs(a) for a, b in zip(heard, heard[1:]))
+    assert results["other"].nit == result.nit  # the same work, unheard: heard once
+
+    def broken(E, r):
+        raise RuntimeError("display gone")
+
+    with listening(broken):  # a listener that fails never changes the minimization
+        again = minimize()
+    assert np.array_equal(again.x, result.x) and again.nit == result.nit

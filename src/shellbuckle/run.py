@@ -18,6 +18,7 @@ import logging
 import os
 import signal
 import threading
+import time
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from .protocol.schedule import geometric_schedule, linear_values
 from .protocol.spec import DEFAULT_MAX_ITER
 from .protocol.stored import init_stored
 from .solve.linear import check_mode, check_threads, default_threads
+from .solve.listen import listening
 from .store.layout import SOLVER_MODE
 from .store.located import LOCATE_TOL
 from .store.run import RunStore
@@ -542,7 +544,12 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
             while state.stopped is None and (max_steps is None or done < max_steps):
                 checkpoint()
                 folds.count = 0
-                state, record = protocol_mod.step(ctx, state)
+                if bar is None:
+                    state, record = protocol_mod.step(ctx, state)
+                else:
+                    bar.begin(state.step + 1)
+                    with listening(bar.accepted):
+                        state, record = protocol_mod.step(ctx, state)
                 store.append_step(state.step, state.X, record)
                 done += 1
                 if folds.count:
@@ -579,7 +586,14 @@ class _Progress:
     and its shape and W (:func:`~shellbuckle.analysis.classify.classify_descriptors`, about
     0.09 s a step at 3594 vertices, 2-4 % of a step of the main job). :meth:`close` with
     ``ended`` sets the total to the steps done, so a run that ends early (self-contact, a
-    failure) ends at 100 %. While it is shown, log records are written above it."""
+    failure) ends at 100 %. While it is shown, log records are written above it.
+
+    Within a step that lasts more than :attr:`EVERY_S` (a step on a fine mesh: minutes), the
+    bar also shows the step's accepted minimizer iterations so far and its time, refreshed
+    every :attr:`EVERY_S` (:meth:`accepted`, called by the minimizers through
+    :mod:`shellbuckle.solve.listen`)."""
+
+    EVERY_S = 1.0
 
     def __init__(self, total: int, initial: int, mesh: Mesh, params):
         from tqdm.auto import tqdm
@@ -593,6 +607,23 @@ class _Progress:
                         dynamic_ncols=True)
         self.redirect = logging_redirect_tqdm(tqdm_class=tqdm)
         self.redirect.__enter__()
+        self.last, self.step, self.iterations, self.t0, self.shown = "", None, 0, 0.0, 0.0
+
+    def begin(self, step: int) -> None:
+        """Step ``step`` begins: its iterations are counted from 0."""
+        self.step, self.iterations = step, 0
+        self.t0 = self.shown = time.monotonic()
+
+    def accepted(self, E: float, r_norm: float) -> None:
+        """A minimizer step was accepted within the current step (:mod:`.solve.listen`)."""
+        self.iterations += 1
+        t = time.monotonic()
+        if t - self.shown < self.EVERY_S:
+            return
+        self.shown = t
+        minutes, seconds = divmod(int(t - self.t0), 60)
+        now = f"step {self.step}: {self.iterations} it, {minutes}:{seconds:02d}"
+        self.bar.set_postfix_str(f"{self.last} | {now}" if self.last else now, refresh=True)
 
     def update(self, X, record: dict) -> None:
         from .theory import classical_pressure
@@ -600,10 +631,9 @@ class _Progress:
         params = self.params if "gamma" not in record else self.params.with_gamma(
             record["gamma"])
         p_c = classical_pressure(params)
-        self.bar.set_postfix_str(f"dV/V={record['dV_over_V']:.3f} "
-                                 f"E/kappa={record['E_over_kappa']:.4g} "
-                                 f"p/p_c={record['pressure'] / p_c:.3f} {self._shape(X)}",
-                                 refresh=False)
+        self.last = (f"dV/V={record['dV_over_V']:.3f} E/kappa={record['E_over_kappa']:.4g} "
+                     f"p/p_c={record['pressure'] / p_c:.3f} {self._shape(X)}")
+        self.bar.set_postfix_str(self.last, refresh=False)
         self.bar.update(1)
 
     def _shape(self, X) -> str:

@@ -9,6 +9,7 @@ import dataclasses
 from .cg import conjugate_gradient, gradient_descent
 from .linear import QDLDLSolver, SingularFactorError, SuperLUSolver, make_solver
 from .linesearch import projected_gradient, restore_volume
+from .listen import listening
 from .newton import newton
 from .options import NewtonOptions
 from .result import MinimizeResult
@@ -16,7 +17,8 @@ from .workspace import Workspace
 
 __all__ = ["MinimizeResult", "NewtonOptions", "QDLDLSolver", "SingularFactorError",
            "SuperLUSolver", "Workspace", "conjugate_gradient", "gradient_descent",
-           "make_solver", "minimize", "newton", "projected_gradient", "restore_volume"]
+           "listening", "make_solver", "minimize", "newton", "projected_gradient",
+           "restore_volume"]
 
 METHODS = ("newton", "cg", "gd", "alternate")
 

@@ -32,6 +32,7 @@ import numpy as np
 
 from .linesearch import (RestoredPath, check_problem, mean_edge_length, projected_gradient,
                          restore_volume, secant_search)
+from .listen import accepted
 from .result import MinimizeResult
 
 log = logging.getLogger(__name__)
@@ -117,6 +118,7 @@ def conjugate_gradient(energy, volume, X0, V_target, *, tol_grad: float = 1e-8,
             break
         p_prev, r_prev, alpha_prev, slope_prev = p, r, alpha, slope
         nit += 1
+        accepted(E, r_norm)
         if history:
             records.append(dict(iteration=k, energy=E, grad_norm=r_norm, lam=lam, alpha=alpha))
         if k % 100 == 0:

@@ -146,6 +146,7 @@ from .gauge import fixes_gauge
 from .lbfgs import SecantPairs
 from .linesearch import (check_problem, max_displacement, mean_edge_length,
                          quasi_newton_search, restore_volume)
+from .listen import accepted
 from .options import NewtonOptions
 from .relax import exact_preconditioner, relax, smooth_start
 from .result import MinimizeResult
@@ -601,6 +602,7 @@ def _stuck(m: Minimization, st: NewtonState, step: Step) -> bool:
     st.r_norm = float(np.linalg.norm(st.r))
     st.message = stop
     st.nit += 1
+    accepted(st.E, st.r_norm)
     return True
 
 
@@ -616,6 +618,7 @@ def _accept(m: Minimization, st: NewtonState, step: Step) -> None:
     st.dE, st.E, st.X, st.retries = step.E - st.E, step.E, step.X, 0
     st.evaluated = st.assembled = False
     st.nit += 1
+    accepted(st.E, st.r_norm)
 
 
 def _result(m: Minimization, st: NewtonState, t_start: float) -> MinimizeResult:

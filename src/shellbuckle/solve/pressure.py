@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from .linear import SingularFactorError, make_solver
 from .linesearch import backtracking
+from .listen import accepted
 from .gauge import pinned_dofs
 from .result import MinimizeResult
 
@@ -111,6 +112,7 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
         log.debug("pressure newton %d: G = %.12g, |grad G| = %.3e, inertia %s, mu %.2e",
                   nit, G_new, gnorm, inertia, mu)
         G = G_new
+        accepted(G, gnorm)
     E = float(energy.value(X))
     return MinimizeResult(
         x=X, fun=E, grad_norm=float(np.linalg.norm((energy.gradient(X) + p * volume.gradient(X)))),

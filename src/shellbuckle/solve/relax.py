@@ -40,6 +40,7 @@ import numpy as np
 from .damping import factor_positive
 from .lbfgs import SecantPairs
 from .linesearch import mean_edge_length, parabola_minimizer, quasi_newton_search
+from .listen import accepted
 from .workspace import Factorization
 
 log = logging.getLogger(__name__)
@@ -138,6 +139,7 @@ def relax(system, X, E, X_ref, options, max_step, abandon=None):
             tau = rescaled(tau, E, E_new, quasi[1], alpha)
         previous, X, E = (X, r), X_new, E_new
         n += 1
+        accepted(E, r_norm)
         energies.append(E)
         if o.history:
             records.append(dict(iteration=n - 1, energy=E, grad_norm=r_norm, lam=lam,
