@@ -933,3 +933,21 @@ def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
         assert Catalogue.load(folder)["status"].tolist() == ["interrupted"]
         assert pd.read_csv(folder / CATALOGUE_CSV)["status"].tolist() == ["interrupted"]
     assert not folders[2].exists()
+
+
+def test_the_sweep_bar_counts_the_steps_its_unfinished_runs_have_stored(tmp_path, monkeypatch,
+                                                                      capsys):
+    # a run on a fine mesh is hours of steps: the bar says how many are stored meanwhile
+    import re
+
+    import shellbuckle.sweep as sweep_mod
+
+    monkeypatch.setattr(sweep_mod, "STEPS_EVERY_S", 0.0)
+    spec = SweepSpec(gamma=271, icosphere=3, until=0.3)
+    run_sweep(spec, tmp_path, workers=1, progress=True, analyze=False)
+    frames = [f for f in re.split(r"[\r\n]", capsys.readouterr().err) if f.startswith("sweep:")]
+    counts = [int(m.group(1)) for f in frames
+              if (m := re.search(r"0/1 .*steps of unfinished runs (\d+)", f))]
+    stored = len(pd.read_csv(tmp_path / spec.points()[0]["name"] / "table.csv")) - 1
+    assert counts and max(counts) >= 1 and counts == sorted(counts) and max(counts) <= stored
+    assert re.search(r"1/1 .*failed 0, steps of unfinished runs 0", frames[-1]), frames[-1]

@@ -51,7 +51,7 @@ from .protocol.schedule import MAX_DV_OVER_V, PAPER_DV
 from .store.catalogue import (AFTER_RUN_FAILURES, Catalogue, analysis_complete,
                               check_sweep_folder, failure_stands, read_attempts,
                               record_attempt, write_sweep_file)
-from .store.names import LOGS_DIR, SWEEP_JSON
+from .store.names import LOGS_DIR, STEPS_DIR, SWEEP_JSON
 from .util import interrupt_of, now
 
 log = logging.getLogger(__name__)
@@ -940,8 +940,8 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
 
                 bar = tqdm(total=total, initial=total - len(todo), unit="run", desc="sweep",
                            dynamic_ncols=True)
-            failed = 0
-            for future in as_completed(futures):
+            failed, shown = 0, _Shown(bar, out_dir, [p["name"] for p in todo])
+            for future in _completed(as_completed(futures), shown):
                 try:
                     result = future.result()
                 except Exception as exc:  # the task itself died: worker killed, cancelled...
@@ -956,9 +956,7 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
                     result = {"outcome": "failed"}
                 failed += result["outcome"] == "failed"
                 catalogue.write()
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix_str(f"failed {failed}")
+                shown.done(names[future.key], failed)
         except BaseException:
             for f in futures:
                 f.cancel()
@@ -966,6 +964,61 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
         finally:
             if bar is not None:
                 bar.close()
+
+
+#: How often a sweep's progress bar counts the steps its unfinished runs have stored (s).
+STEPS_EVERY_S = 5.0
+
+
+class _Shown:
+    """What a sweep's progress bar (``bar``, or None: nothing shown) says beside the runs
+    done: the failed runs, and the steps stored so far in the folders of the runs not done
+    yet (a run on a fine mesh is hours of steps; :meth:`tick`, every :data:`STEPS_EVERY_S`)."""
+
+    def __init__(self, bar, out_dir: Path, names):
+        self.bar, self.out_dir, self.waiting = bar, Path(out_dir), set(names)
+        self.failed, self.last = 0, time.monotonic()
+
+    def done(self, name: str, failed: int) -> None:
+        self.waiting.discard(name)
+        self.failed = failed
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix_str(self._text(), refresh=True)
+
+    def tick(self) -> None:
+        if self.bar is None or time.monotonic() - self.last < STEPS_EVERY_S:
+            return
+        self.bar.set_postfix_str(self._text(), refresh=True)
+
+    def _text(self) -> str:
+        self.last = time.monotonic()
+        steps = sum(_steps_stored(self.out_dir / name) for name in self.waiting)
+        return f"failed {self.failed}, steps of unfinished runs {steps}"
+
+
+def _steps_stored(folder: Path) -> int:
+    """Step files in a run folder (0 if it has none yet), after step 0 (the sphere)."""
+    from .store.layout import _step_indices
+
+    try:
+        return max(len(list(_step_indices(os.listdir(folder / STEPS_DIR)))) - 1, 0)
+    except OSError:
+        return 0
+
+
+def _completed(futures, shown: _Shown):
+    """The futures of ``futures`` (a ``distributed.as_completed``) as they complete; while
+    none does and a bar is shown, :meth:`_Shown.tick` every quarter second."""
+    if shown.bar is None:
+        yield from futures
+        return
+    while not futures.is_empty():
+        batch = futures.next_batch(block=False)
+        if not batch:
+            shown.tick()
+            time.sleep(0.25)
+        yield from batch
 
 
 @contextmanager
