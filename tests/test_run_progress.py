@@ -190,9 +190,39 @@ def test_a_listener_hears_each_accepted_step_and_its_energy_and_only_its_own_thr
     assert all(b <= a + 1e-13 * abs(a) for a, b in zip(heard, heard[1:]))
     assert results["other"].nit == result.nit  # the same work, unheard: heard once
 
+    import contextvars
+
+    with listening(lambda E, r: heard.append(E)):  # a thread that inherits the context
+        thread = threading.Thread(target=contextvars.copy_context().run, args=(minimize,))
+        thread.start()
+        thread.join()
+    assert len(heard) == result.nit  # nothing more heard
+
     def broken(E, r):
         raise RuntimeError("display gone")
 
     with listening(broken):  # a listener that fails never changes the minimization
         again = minimize()
     assert np.array_equal(again.x, result.x) and again.nit == result.nit
+
+
+@pytest.mark.parametrize("conjugate", [True, False])
+def test_the_gradient_methods_report_each_step_they_count(conjugate):
+    # to their usual end here: the energy stationary within round-off
+    import numpy as np
+
+    from shellbuckle.energies.total import ShellEnergy
+    from shellbuckle.energies.volume import Volume
+    from shellbuckle.solve.cg import conjugate_gradient
+    from shellbuckle.solve.listen import listening
+
+    mesh = icosphere(2)
+    energy = ShellEnergy.build(mesh, ShellParameters.from_gamma(GAMMA), c0=2.0)
+    volume = Volume(mesh.faces, mesh.n_vertices)
+    start = mesh.X + 0.005 * np.random.default_rng(5).standard_normal(mesh.X.shape)
+    heard = []
+    with listening(lambda E, r: heard.append(E)):
+        result = conjugate_gradient(energy, volume, start, 0.95 * volume.value(mesh.X),
+                                    conjugate=conjugate, tol_grad=1e-14, atol_grad=0.0,
+                                    max_iter=400)
+    assert len(heard) == result.nit > 20 and heard[-1] == result.fun

@@ -348,6 +348,19 @@ def test_a_status_that_cannot_be_probed_is_the_stored_one(tmp_path, monkeypatch)
     assert RunStore.open(folder).current_status() == ("running", None)
 
 
+def test_without_flock_a_running_run_reads_running(tmp_path, monkeypatch):
+    # where locks are no-ops (Windows) a live writer cannot be told from a killed one: the
+    # stored status, never the advice to resume (a second writer would not be refused)
+    from shellbuckle.store import atomic
+
+    folder = tmp_path / "run"
+    with _create(folder) as store:
+        store.append_step(0, store.X0, _record(0))
+    assert RunStore.open(folder).current_status()[0] == "interrupted"
+    monkeypatch.setattr(atomic, "fcntl", None)
+    assert RunStore.open(folder).current_status() == ("running", None)
+
+
 @pytest.mark.skipif(not Path("/proc/self/fd").exists(), reason="needs /proc")
 def test_sigkill_inside_a_step_write_keeps_the_previous_steps_and_resumes(tmp_path):
     script = tmp_path / "writer.py"

@@ -882,7 +882,7 @@ def test_a_run_killed_outright_with_its_sweep_is_listed_interrupted_until_resume
     assert "shellbuckle resume" in row["message"]
     assert pd.read_csv(tmp_path / CATALOGUE_CSV)["status"].tolist() == ["interrupted"]
     run = Run.open(tmp_path / name)
-    assert run.status == "interrupted" and "no process writes the run" in run.message
+    assert run.status == "interrupted" and "no process holds its writer lock" in run.message
     report_run(run)
     assert "status: interrupted (run.json says running" in capsys.readouterr().out
     with RunStore.resume(tmp_path / name):  # a live writer again: running, the cache asks anew
@@ -935,19 +935,26 @@ def test_the_client_of_several_sweeps_marks_their_stopped_runs(tmp_path):
     assert not folders[2].exists()
 
 
-def test_the_sweep_bar_counts_the_steps_its_unfinished_runs_have_stored(tmp_path, monkeypatch,
-                                                                      capsys):
-    # a run on a fine mesh is hours of steps: the bar says how many are stored meanwhile
+def test_the_sweep_bar_counts_the_steps_its_runs_have_made(tmp_path, monkeypatch, capsys):
+    # a run on a fine mesh is hours of steps: the bar says how many the sweep has stored
     import re
 
     import shellbuckle.sweep as sweep_mod
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+    from shellbuckle.run import deflate
+    from shellbuckle.sweep import _runs
 
     monkeypatch.setattr(sweep_mod, "STEPS_EVERY_S", 0.0)
     spec = SweepSpec(gamma=271, icosphere=3, until=0.3)
+    (point,) = spec.points()
+    write_sweep_file(tmp_path, spec.to_dict(), _runs([point]))
+    deflate(icosphere(3), ShellParameters.from_gamma(271, 1 / 3), until=0.3, seed=0,
+            out=tmp_path / point["name"], max_steps=3, locate=False)  # made before: not counted
     run_sweep(spec, tmp_path, workers=1, progress=True, analyze=False)
     frames = [f for f in re.split(r"[\r\n]", capsys.readouterr().err) if f.startswith("sweep:")]
-    counts = [int(m.group(1)) for f in frames
-              if (m := re.search(r"0/1 .*steps of unfinished runs (\d+)", f))]
-    stored = len(pd.read_csv(tmp_path / spec.points()[0]["name"] / "table.csv")) - 1
-    assert counts and max(counts) >= 1 and counts == sorted(counts) and max(counts) <= stored
-    assert re.search(r"1/1 .*failed 0, steps of unfinished runs 0", frames[-1]), frames[-1]
+    counts = [int(m.group(1)) for f in frames if (m := re.search(r"0/1 .*steps made (\d+)", f))]
+    made = len(pd.read_csv(tmp_path / point["name"] / "table.csv")) - 1 - 3
+    assert made > 5 and counts and max(counts) >= 1 and counts == sorted(counts)
+    assert max(counts) <= made
+    assert re.search(rf"1/1 .*failed 0, steps made {made}\b", frames[-1]), frames[-1]

@@ -544,7 +544,7 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
             while state.stopped is None and (max_steps is None or done < max_steps):
                 checkpoint()
                 folds.count = 0
-                if bar is None:
+                if bar is None or not bar.within:
                     state, record = protocol_mod.step(ctx, state)
                 else:
                     bar.begin(state.step + 1)
@@ -608,6 +608,7 @@ class _Progress:
         self.redirect = logging_redirect_tqdm(tqdm_class=tqdm)
         self.redirect.__enter__()
         self.last, self.step, self.iterations, self.t0, self.shown = "", None, 0, 0.0, 0.0
+        self.within = True  # show the iterations within a step (off after a failure)
 
     def begin(self, step: int) -> None:
         """Step ``step`` begins: its iterations are counted from 0."""
@@ -623,7 +624,12 @@ class _Progress:
         self.shown = t
         minutes, seconds = divmod(int(t - self.t0), 60)
         now = f"step {self.step}: {self.iterations} it, {minutes}:{seconds:02d}"
-        self.bar.set_postfix_str(f"{self.last} | {now}" if self.last else now, refresh=True)
+        try:
+            self.bar.set_postfix_str(f"{self.last} | {now}" if self.last else now, refresh=True)
+        except Exception as exc:  # noqa: BLE001 - the bar never stops a run
+            log.warning("the progress bar cannot show the iterations within a step: %s: %s",
+                        type(exc).__name__, exc)
+            self.within = False
 
     def update(self, X, record: dict) -> None:
         from .theory import classical_pressure

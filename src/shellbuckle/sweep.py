@@ -719,7 +719,7 @@ def run_point(point: dict, out_dir, *, analyze: bool = True) -> dict:
 
         with _named_logs(name):
             run = Run.open(folder) if state in ("analyze", "locate") else _deflate(point, folder)
-        status, message = run.status, run.store.meta.get("message")
+        status, message = run.store.current_status()
         outcome = "finished" if status == "finished" else "paused"
     except Exception as exc:  # recorded, the sweep goes on
         status, message, outcome = "failed", f"{type(exc).__name__}: {exc}", "failed"
@@ -972,29 +972,39 @@ STEPS_EVERY_S = 5.0
 
 class _Shown:
     """What a sweep's progress bar (``bar``, or None: nothing shown) says beside the runs
-    done: the failed runs, and the steps stored so far in the folders of the runs not done
-    yet (a run on a fine mesh is hours of steps; :meth:`tick`, every :data:`STEPS_EVERY_S`)."""
+    done: the failed runs, and the steps the sweep has stored so far (a run on a fine mesh is
+    hours of steps): the steps in the folders of the runs ``names`` beyond those they held
+    when it began, counted every :data:`STEPS_EVERY_S` (:meth:`tick`) and, for a run, once
+    more when it is done."""
 
     def __init__(self, bar, out_dir: Path, names):
-        self.bar, self.out_dir, self.waiting = bar, Path(out_dir), set(names)
-        self.failed, self.last = 0, time.monotonic()
+        self.bar, self.out_dir = bar, Path(out_dir)
+        self.before = ({name: _steps_stored(self.out_dir / name) for name in names}
+                       if bar is not None else {})
+        self.seen = {}  # the steps made by each run not done yet, at the last count
+        self.made, self.failed, self.last = 0, 0, time.monotonic()
 
     def done(self, name: str, failed: int) -> None:
-        self.waiting.discard(name)
         self.failed = failed
-        if self.bar is not None:
-            self.bar.update(1)
-            self.bar.set_postfix_str(self._text(), refresh=True)
+        if self.bar is None:
+            return
+        before = self.before.pop(name, None)
+        self.seen.pop(name, None)
+        if before is not None:
+            self.made += _steps_stored(self.out_dir / name) - before
+        self.bar.update(1)
+        self.bar.set_postfix_str(self._text(), refresh=True)
 
     def tick(self) -> None:
         if self.bar is None or time.monotonic() - self.last < STEPS_EVERY_S:
             return
+        self.last = time.monotonic()
+        self.seen = {name: _steps_stored(self.out_dir / name) - before
+                     for name, before in self.before.items()}
         self.bar.set_postfix_str(self._text(), refresh=True)
 
     def _text(self) -> str:
-        self.last = time.monotonic()
-        steps = sum(_steps_stored(self.out_dir / name) for name in self.waiting)
-        return f"failed {self.failed}, steps of unfinished runs {steps}"
+        return f"failed {self.failed}, steps made {self.made + sum(self.seen.values())}"
 
 
 def _steps_stored(folder: Path) -> int:

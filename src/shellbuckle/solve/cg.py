@@ -115,6 +115,7 @@ def conjugate_gradient(energy, volume, X0, V_target, *, tol_grad: float = 1e-8,
             message = ("converged (energy stationary within round-off for 20 steps)" if success
                        else "stalled: energy stationary within round-off for 20 steps")
             nit += 1
+            accepted(E, r_norm)
             break
         p_prev, r_prev, alpha_prev, slope_prev = p, r, alpha, slope
         nit += 1

@@ -8,26 +8,29 @@ installed with :func:`listening` in the calling thread's context receives ``(E, 
 energy reached and the projected gradient's norm (at the step's end for Newton's method, at
 its start for the others, which do not evaluate it at the end). Without a listener a call
 costs one context-variable lookup. The listener must be quick (a display throttles itself); if
-it raises, the error is logged and the listener removed for the rest of the context, so that a
+it raises, the error is logged and the listener removed for the rest of its block, so that a
 display never stops a minimization.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 from contextlib import contextmanager
 from contextvars import ContextVar
 
 log = logging.getLogger(__name__)
 
+#: ``[listener, thread id]`` of the innermost :func:`listening` block, or None.
 _LISTENER: ContextVar = ContextVar("shellbuckle_minimization_listener", default=None)
 
 
 @contextmanager
 def listening(listener):
     """Call ``listener(E, r_norm)`` after every accepted step of the minimizations made in
-    this context (this thread; nested contexts replace it for their extent)."""
-    token = _LISTENER.set(listener)
+    this block, by this thread only (also where new threads inherit the context); a nested
+    block replaces it for its extent."""
+    token = _LISTENER.set([listener, threading.get_ident()])
     try:
         yield
     finally:
@@ -35,13 +38,13 @@ def listening(listener):
 
 
 def accepted(E: float, r_norm: float) -> None:
-    """Tell the listener of this context, if any, that a step was accepted."""
-    listener = _LISTENER.get()
-    if listener is None:
+    """Tell the listener of this block, if any, that a step was accepted."""
+    entry = _LISTENER.get()
+    if entry is None or entry[0] is None or entry[1] != threading.get_ident():
         return
     try:
-        listener(E, r_norm)
+        entry[0](E, r_norm)
     except Exception as exc:  # noqa: BLE001 - a display never stops a minimization
         log.warning("a progress display failed and is switched off: %s: %s",
                     type(exc).__name__, exc)
-        _LISTENER.set(None)
+        entry[0] = None  # for the rest of the block

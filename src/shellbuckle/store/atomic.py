@@ -116,6 +116,11 @@ def set_aside(file: Path) -> Path:
 PROBE_PATIENCE_S, PROBE_RETRY_S = 0.1, 0.005
 
 
+def locks_work() -> bool:
+    """Whether this system has ``flock`` (not Windows): without it a lock is never held."""
+    return fcntl is not None
+
+
 class FileLock:
     """Exclusive advisory lock on ``path`` (created if missing), released on close or death."""
 

@@ -100,7 +100,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..util import now
-from .atomic import (FileLock, atomic_write_bytes, fsync_folder, locked_update,
+from .atomic import (FileLock, atomic_write_bytes, fsync_folder, locked_update, locks_work,
                      remove_temporaries, temporary_target)
 # the store's names are all importable from here: the public ones and the helpers that other
 # modules and the tests use
@@ -436,9 +436,11 @@ class RunStore:
         The lock is probed once, without waiting (a reader probing it at that moment makes
         the run count as live), then run.json is read again, so that a run which ended
         between the two reads is reported as it ended. Where the lock cannot be probed (a
-        read-only copy of the folder) the stored status is reported."""
+        read-only copy of the folder, a system without ``flock``) the stored status is
+        reported. A lock of a network file system that other machines' locks do not reach is
+        free here while a process there writes the run: the message says so."""
         status, message = self._meta["status"], self._meta.get("message")
-        if status != "running" or self._writer.held:
+        if status != "running" or self._writer.held or not locks_work():
             return status, message
         try:
             if self._writer.is_held_elsewhere(patience=0.0):
@@ -452,9 +454,10 @@ class RunStore:
             return meta["status"], meta.get("message")
         after = f" after step {self.last_step}" if self.last_step is not None else ""
         return "interrupted", (
-            f"run.json says running, but no process writes the run: it was stopped outright "
-            f"(killed, out of memory, or its machine went down){after}; `shellbuckle resume "
-            f"{self._path}` continues it")
+            f"run.json says running, but no process holds its writer lock: it was stopped "
+            f"outright (killed, out of memory, or its machine went down){after}; `shellbuckle "
+            f"resume {self._path}` continues it (unless a process on another machine writes "
+            f"it through a file system whose locks do not reach this one)")
 
     # ------------------------------------------------------------------ mesh
 
