@@ -315,6 +315,32 @@ def test_deflate_counts_amplitudes_in_the_effective_thickness(tmp_path):
         assert protocol["smooth_jiggle"] == pytest.approx(0.02 * d, rel=1e-12)
 
 
+def test_deflate_takes_the_critical_degree_of_the_sweep_for_the_same_shell(tmp_path, capsys):
+    from shellbuckle.cli import main
+    from shellbuckle.store.run import RunStore
+    from shellbuckle.sweep import SweepSpec
+
+    for convention in ("helfrich", "paper"):
+        out = tmp_path / convention
+        assert main(["deflate", "--gamma", "2333", "--vertices", "1000", "--energy-convention",
+                     convention, "--shape-imperfection-d", "0.1", "--shape-degree", "critical",
+                     "--smooth-jiggle", "0", "--until", "0.019", "--no-plot", "--no-locate",
+                     "--quiet", "--out", str(out)]) == 0
+        (point,) = SweepSpec(gamma=[2333], energy_convention=[convention], vertices=[1000],
+                             shape_imperfection_d=[0.1], shape_degree=["critical"]).points()
+        stored = RunStore.open(out).meta["protocol"]
+        assert stored["shape_degree"] == point["shape_degree"] == {"helfrich": 8,
+                                                                    "paper": 11}[convention]
+    # above the checked grid: refused before any folder, naming the degree it gives
+    out = tmp_path / "thin"
+    assert main(["deflate", "--gamma", "2e5", "--energy-convention", "paper",
+                 "--shape-imperfection-d", "0.05", "--shape-degree", "critical",
+                 "--out", str(out)]) == 2
+    assert "--shape-degree critical (gives L = 31): allowed: an integer in [2, 30]" in \
+        capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_an_imperfect_shell_dents_at_the_same_place_on_two_meshes(tmp_path):
     # invariance: the same shape imperfection (seed, amplitude, degree) on two randomized
     # meshes of different sizes is the same shell, so it follows the same pressure path and
