@@ -3,6 +3,7 @@ sphere, the same surface on every mesh (protocol.imperfection, "shape imperfecti
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -339,6 +340,16 @@ def test_deflate_takes_the_critical_degree_of_the_sweep_for_the_same_shell(tmp_p
     assert "--shape-degree critical (gives L = 31): allowed: an integer in [2, 30]" in \
         capsys.readouterr().err
     assert not out.exists()
+    # a mesh file brings its own shell: the shape imperfection is refused first, whatever the
+    # degree it would give
+    fe = Path(__file__).parent / "fixtures" / "evolver" / "sphere_perturbed.fe"
+    for degree in ("critical", "3"):
+        assert main(["deflate", "--mesh", str(fe), "--shape-imperfection-d", "0.1",
+                     "--shape-degree", degree, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "--shape-imperfection-d 0.1: allowed: on a randomized or icosahedral sphere" \
+            in err and "not on a --mesh file" in err and "resolve" not in err
+        assert not out.exists()
 
 
 def test_an_imperfect_shell_dents_at_the_same_place_on_two_meshes(tmp_path):

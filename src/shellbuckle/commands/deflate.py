@@ -115,11 +115,6 @@ def _cmd(args) -> int:
                                      options)
     options.setdefault("bending", from_file.get("bending"))
     options.setdefault("c0", from_file.get("c0"))
-    if args.mesh is not None and options.get("shape_imperfection"):
-        flag = "--shape-imperfection" + ("-d" if "shape_imperfection_d" in options else "")
-        raise ValueError(f"{flag} {typed(args, flag)}: allowed: on a randomized or icosahedral "
-                         f"sphere (--vertices, --icosphere), not on a --mesh file, whose "
-                         f"vertices would be moved onto a sphere ({args.mesh})")
     options = {k: v for k, v in options.items() if v is not None and k not in IN_D}
     from ..run import deflate
 
@@ -153,6 +148,12 @@ def _protocol(args) -> dict:
             raise ValueError(f"--{name} {typed(args, '--' + name, options[name])}: allowed: "
                              f"without {listed}, which lists the targets itself")
     _check_smooth_options(args, options)
+    if args.mesh is not None and (options.get("shape_imperfection")
+                                  or options.get("shape_imperfection_d")):
+        flag = "--shape-imperfection" + ("-d" if "shape_imperfection_d" in options else "")
+        raise ValueError(f"{flag} {typed(args, flag)}: allowed: on a randomized or icosahedral "
+                         f"sphere (--vertices, --icosphere), not on a --mesh file, whose "
+                         f"vertices would be moved onto a sphere ({args.mesh})")
     from ..protocol.imperfection import CRITICAL, critical_shape_degree
 
     if options.get("shape_degree") == CRITICAL:
