@@ -19,6 +19,7 @@ import os
 import signal
 import threading
 import time
+from contextlib import nullcontext
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -544,12 +545,11 @@ def _drive_steps(store: RunStore, mesh: Mesh, params, protocol: Protocol, *, pro
             while state.stopped is None and (max_steps is None or done < max_steps):
                 checkpoint()
                 folds.count = 0
-                if bar is None or not bar.within:
-                    state, record = protocol_mod.step(ctx, state)
-                else:
+                within = bar is not None and bar.within
+                if within:
                     bar.begin(state.step + 1)
-                    with listening(bar.accepted):
-                        state, record = protocol_mod.step(ctx, state)
+                with listening(bar.accepted) if within else nullcontext():
+                    state, record = protocol_mod.step(ctx, state)
                 store.append_step(state.step, state.X, record)
                 done += 1
                 if folds.count:
