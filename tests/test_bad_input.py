@@ -161,6 +161,8 @@ CASES = [
     (["deflate", "--shape-imperfection-d", "10", "--gamma", "271", "--vertices", "600",
       "--shape-degree", "8", "--out", "{tmp}/r"], "--shape-imperfection-d", "10"),
     (["deflate", "--shape-degree", "8", "--out", "{tmp}/r"], "--shape-degree", "8"),
+    (["deflate", "--shape-imperfection", "0.01", "--shape-degree", "critic", "--out",
+      "{tmp}/r"], "--shape-degree", "critic"),
     (["deflate", "--shape-imperfection", "0.05", "--shape-degree", "12", "--out", "{tmp}/r"],
      "--shape-imperfection", "0.05"),
     (["deflate", "--gamma", "2333", "--shape-imperfection-d", "1", "--out", "{tmp}/r"],
@@ -608,3 +610,22 @@ def test_a_sweeps_help_states_the_ranges_its_lists_are_checked_against():
              for a in sweep._actions}
     for axis, span in SPANS.items():
         assert f"allowed: {RANGES[span].explained()}" in helps[axis], (axis, helps[axis])
+
+
+@pytest.mark.parametrize("typed", ["critic", "31", "1"])
+def test_deflate_and_sweep_refuse_a_shape_degree_alike(typed, tmp_path, capsys):
+    """One declaration of ``--shape-degree`` (an integer in range, or ``critical``): a single
+    degree of ``deflate`` and an item of a sweep's list are refused with the same reason."""
+    reasons = []
+    for command in ("deflate", "sweep"):
+        try:
+            code = main([command, "--shape-imperfection-d", "0.1", "--shape-degree", typed,
+                         "--out", str(tmp_path / command)])
+        except SystemExit as exit_:
+            code = exit_.code
+        assert code == 2
+        line = capsys.readouterr().err.strip().splitlines()[-1]
+        assert "'critical' (the shell's buckling degree + 1)" in line
+        reasons.append(line.split("allowed:", 1)[1])
+        assert not (tmp_path / command).exists()
+    assert reasons[0] == reasons[1]

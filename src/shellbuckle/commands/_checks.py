@@ -231,21 +231,29 @@ class Invalid:
 
 
 class Number:
-    """The ``type`` of a numeric option: the value, or an :class:`Invalid`."""
+    """The ``type`` of a numeric option: the value, or an :class:`Invalid`. ``words`` are
+    names it also takes, each with what it means (``{"critical": "the shell's buckling
+    degree + 1"}``); a word is returned as typed, to be resolved where the run is known."""
 
-    def __init__(self, name: str):
-        self.name, self.range = name, RANGES[name]
+    def __init__(self, name: str, words: dict | None = None):
+        self.name, self.range, self.words = name, RANGES[name], dict(words or {})
         self.__name__ = "integer" if self.range.integer else "number"
 
     def __call__(self, text):
         text = str(text)
+        if text.strip() in self.words:
+            return text.strip()
         try:
             value = int(text.strip()) if self.range.integer else float(text)
         except ValueError:
             return Invalid(text, f"not {'an integer' if self.range.integer else 'a number'}; "
-                                 f"{allowed(self.name)}")
+                                 f"{allowed(self.name)}{self.or_words()}")
         problem = self.range.problem(value)
-        return Invalid(text, problem) if problem else value
+        return Invalid(text, problem + self.or_words()) if problem else value
+
+    def or_words(self) -> str:
+        """The words, for a message: ``, or 'critical' (the shell's ...)``; empty for none."""
+        return "".join(f", or {word!r} ({meaning})" for word, meaning in self.words.items())
 
 
 def check_value(option: str, name: str, value, text=None):

@@ -121,7 +121,8 @@ def params_from_args(args, fallback=None):
 class _Option:
     """One protocol option: its flag, the Protocol field it sets, what it is (``help``) and its
     default (``default``, the words in parentheses after the help; empty for none), its type,
-    choices and metavar in a list; a switch (store_true) sets the field to ``value``."""
+    choices and metavar in a list; a switch (store_true) sets the field to ``value``.
+    ``words``: (word, meaning) pairs a numeric option also takes (:class:`._checks.Number`)."""
 
     flag: str
     field: str
@@ -132,6 +133,7 @@ class _Option:
     choices: tuple = ()
     metavar: str = ""
     range: str = ""
+    words: tuple = ()
 
 
 @lru_cache(maxsize=1)
@@ -155,6 +157,7 @@ def protocol_defaults() -> dict:
 @lru_cache(maxsize=1)
 def _options() -> dict:
     from ..energies.kinds import BENDING_KINDS
+    from ..protocol.imperfection import CRITICAL
     from ..protocol.spec import METHODS
     from ..protocol.schedule import MAX_DV_OVER_V
 
@@ -207,9 +210,12 @@ def _options() -> dict:
                 "--smooth-jiggle-d: the effective thickness of the energy convention); stored "
                 "in units of R",
                 range="shape_imperfection_d"),
-        _Option("--shape-degree", "shape_degree", "highest degree L of the shape imperfection; "
-                "the mesh must resolve it with 4 mean edges per wavelength",
-                f"default {d['shape_degree']}", type=int, range="shape_degree"),
+        _Option("--shape-degree", "shape_degree", "highest degree L of the shape imperfection, "
+                f"or {CRITICAL!r}: the highest degree that holds the classical buckling band, "
+                "ceil(l_c) + 1 with l_c (l_c + 1) = sqrt(gamma_eff); the mesh must resolve it "
+                "with 4 mean edges per wavelength", f"default {d['shape_degree']}", type=int,
+                range="shape_degree",
+                words=((CRITICAL, "the shell's buckling degree + 1"),)),
         _Option("--bending", "bending", "bending discretization, one of "
                 f"{', '.join(BENDING_KINDS)}", f"default {d['bending']}; a Surface Evolver "
                 "--mesh file that bends with star_perp_sq_mean_curvature brings evolver",
@@ -261,7 +267,7 @@ def add_protocol_options(parser, names, *, listed: bool = False, inherited: bool
         elif listed and o.metavar:
             parser.add_argument(flag, metavar=o.metavar, help=_listed(help_text, True))
         else:
-            parser.add_argument(flag, type=Number(span) if span else o.type,
+            parser.add_argument(flag, type=Number(span, dict(o.words)) if span else o.type,
                                 choices=list(o.choices) or None, help=help_text)
 
 
@@ -343,15 +349,14 @@ def stored_step(run, k: int, option: str = "--step") -> int:
 def shape_degrees(text: str) -> list:
     """``--shape-degree``: comma-separated integers (or ranges a-b) in range, or ``critical``
     (the sweep's list; the refinement study takes one)."""
-    from ..protocol.imperfection import CRITICAL
-
+    words = dict(_options()["shape_degree"].words)
     out = []
     for item in (part.strip() for part in text.split(",")):
-        if item == CRITICAL:
-            out.append(CRITICAL)
+        if item in words:
+            out.append(item)
         elif item:
             try:
                 out += values("--shape-degree", item, int, "shape_degree")
             except ValueError as exc:
-                raise ValueError(f"{exc} or {CRITICAL!r}") from None
+                raise ValueError(f"{exc}{Number('shape_degree', words).or_words()}") from None
     return out

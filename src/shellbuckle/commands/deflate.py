@@ -6,7 +6,7 @@
 
 from __future__ import annotations
 
-from ._checks import (RANGES, Invalid, add_command, add_number, allowed, check_c0,
+from ._checks import (RANGES, add_command, add_number, allowed, check_c0,
                       check_mesh, check_pressures, check_smooth_degree, check_steps, check_value,
                       floats, input_file, output_folder, typed)
 from .locate import add_locate_options, locate_arguments
@@ -54,7 +54,6 @@ def register(sub) -> None:
                            "poisson_ratio and form_factors; or any meshio format)")
     add_protocol_options(parser.add_argument_group("protocol"), PROTOCOL,
                          ranges={"dv": "dv_signed"})
-    _accept_critical(parser)
     branch = parser.add_argument_group(
         "continue from a stored step (another spelling of `shellbuckle continue DIR --step K` "
         "along a volume path)")
@@ -69,30 +68,6 @@ def register(sub) -> None:
     add_run_output_options(parser)
     add_locate_options(parser)
     parser.set_defaults(func=_cmd)
-
-
-def _accept_critical(parser) -> None:
-    """``--shape-degree critical`` as in ``sweep`` and ``refine``: the shell's own
-    :func:`~shellbuckle.protocol.imperfection.critical_shape_degree` (resolved in
-    :func:`_protocol`, where the shell is known)."""
-    from ..protocol.imperfection import CRITICAL
-
-    action = next(a for a in parser._actions if "--shape-degree" in a.option_strings)
-    number = action.type
-
-    def degree(text):
-        if str(text).strip() == CRITICAL:
-            return CRITICAL
-        value = number(text)
-        if isinstance(value, Invalid):
-            value.problem = f"{value.problem}, or {CRITICAL!r} (the shell's buckling degree + 1)"
-        return value
-
-    degree.__name__ = "integer"
-    action.type = degree
-    action.help = action.help.replace("; allowed:", f", or {CRITICAL!r}: the highest degree "
-                                      "that holds the classical buckling band, ceil(l_c) + 1; "
-                                      "allowed:", 1)
 
 
 def _cmd(args) -> int:
