@@ -50,3 +50,33 @@ def test_bad_pressure_is_refused(shell):
     mesh, params, energy, volume = shell
     with pytest.raises(ValueError, match="pressure"):
         minimize_at_pressure(energy, volume, mesh.X, float("nan"))
+
+
+@pytest.mark.parametrize("ending", ["converged", "maximum", "line search failed"])
+def test_the_iterations_counted_are_the_steps_taken_and_heard(shell, ending, monkeypatch):
+    """``nit`` counts the accepted Newton steps, whatever ends the minimization: the listener
+    hears each of them once, and a pass that takes no step (converged, or its line search
+    failed) is not counted."""
+    import shellbuckle.solve.pressure as pressure
+    from shellbuckle.solve.listen import listening
+
+    mesh, params, energy, volume = shell
+    p = 0.4 * theory.classical_threshold(params).pressure
+    X0 = mesh.X + 1e-3 * np.random.default_rng(1).standard_normal(mesh.X.shape)
+    max_iter = 3 if ending == "maximum" else 200
+    if ending == "line search failed":
+        searches = []
+        real = pressure.backtracking
+
+        def failing_third(*args, **kwargs):
+            searches.append(1)
+            return None if len(searches) == 3 else real(*args, **kwargs)
+
+        monkeypatch.setattr(pressure, "backtracking", failing_third)
+    heard = []
+    with listening(lambda E, r: heard.append(E)):
+        res = minimize_at_pressure(energy, volume, X0, p, max_iter=max_iter)
+    assert res.message.startswith(ending)
+    assert res.nit == len(heard) > 0
+    assert res.nit == {"maximum": 3, "line search failed": 2}.get(ending, res.nit)
+    assert np.all(np.diff(heard) <= 1e-14 * abs(heard[0]))  # no step raised the enthalpy

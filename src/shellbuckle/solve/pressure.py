@@ -58,8 +58,8 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
 
     G = enthalpy(X)
     mu, inertia, success, message = 0.0, None, False, "maximum number of iterations reached"
-    nit = 0
-    for nit in range(1, max_iter + 1):
+    nit = 0  # accepted Newton steps (the same count the listener hears)
+    for _ in range(max_iter):
         gE = energy.gradient(X).ravel()
         g = gE + p * volume.gradient(X).ravel()
         g[np.setdiff1d(np.arange(n), free)] = 0.0
@@ -71,7 +71,7 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
         except SingularFactorError:  # a zero or non-finite pivot: shifted as if indefinite
             inertia = None
         if gnorm <= tol_grad * np.linalg.norm(gE) + atol_grad and inertia == 0:
-            success, message, nit = True, "converged", nit - 1
+            success, message = True, "converged"
             break
         scale = float(abs(H.diagonal()).max()) if H.shape[0] else 0.0
         shift = 0.0 if inertia == 0 else max(mu / 3.0, 1e-8 * scale)
@@ -109,6 +109,7 @@ def minimize_at_pressure(energy, volume, X0, pressure: float, *, tol_grad: float
             message = "line search failed"
             break
         _, G_new, X = found
+        nit += 1
         log.debug("pressure newton %d: G = %.12g, |grad G| = %.3e, inertia %s, mu %.2e",
                   nit, G_new, gnorm, inertia, mu)
         G = G_new
