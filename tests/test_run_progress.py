@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -149,6 +150,7 @@ def test_the_bar_counts_within_a_step_the_iterations_its_record_stores(tmp_path,
 
     monkeypatch.setattr(run_mod._Progress, "update", update)
     monkeypatch.setattr(run_mod._Progress, "EVERY_S", 0.0)  # show every iteration
+    monkeypatch.setattr(run_mod._Progress, "EVERY_S_LOG", 0.0)  # pytest's capture is no tty
     run = _deflate(tmp_path, temperature=0.01)
     assert [k for k, _, _ in counted] == run.steps[1:]
     assert all(ours == stored > 0 for _, ours, stored in counted), counted
@@ -226,3 +228,47 @@ def test_the_gradient_methods_report_each_step_they_count(conjugate):
                                     conjugate=conjugate, tol_grad=1e-14, atol_grad=0.0,
                                     max_iter=400)
     assert len(heard) == result.nit > 20 and heard[-1] == result.fun
+
+
+def test_a_bar_written_to_a_log_refreshes_within_a_step_once_a_minute(monkeypatch):
+    """Redrawn on a terminal every second; written frame after frame to a file or a pipe (a
+    batch job's log) every minute, not 3600 frames an hour."""
+    import io
+
+    from tqdm import tqdm
+
+    from shellbuckle.mesh import icosphere
+    from shellbuckle.params import ShellParameters
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, every in ((io.StringIO(), run_mod._Progress.EVERY_S_LOG),
+                          (Terminal(), run_mod._Progress.EVERY_S)):
+        monkeypatch.setattr("tqdm.auto.tqdm", lambda *a, **k: tqdm(*a, file=stream, **k))
+        progress = run_mod._Progress(5, 0, icosphere(2), ShellParameters.from_gamma(100, 1 / 3))
+        try:
+            assert run_mod.interactive(progress.bar) == isinstance(stream, Terminal)
+            assert progress.every == every
+            clock = [1000.0]
+            monkeypatch.setattr(run_mod.time, "monotonic", lambda: clock[0])
+            progress.begin(1)
+            written = len(stream.getvalue())
+            for _ in range(120):  # two minutes of iterations, one every second
+                clock[0] += 1.0
+                progress.accepted(1.0, 1e-3)
+            frames = stream.getvalue()[written:].count(" it, ")
+            assert frames == 120 // every
+        finally:
+            monkeypatch.undo()
+            progress.close(False)
+    assert run_mod._Progress.EVERY_S_LOG >= 60 * run_mod._Progress.EVERY_S
+    # a sweep's bar counts the steps made as often: every 5 s on a terminal, every minute in a log
+    import shellbuckle.sweep as sweep_mod
+
+    for stream, every in ((io.StringIO(), sweep_mod.STEPS_EVERY_S_LOG),
+                          (Terminal(), sweep_mod.STEPS_EVERY_S)):
+        bar = tqdm(total=1, file=stream)
+        assert sweep_mod._Shown(bar, Path("."), []).every == every
+        bar.close()

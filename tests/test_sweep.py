@@ -946,6 +946,7 @@ def test_the_sweep_bar_counts_the_steps_its_runs_have_made(tmp_path, monkeypatch
     from shellbuckle.sweep import _runs
 
     monkeypatch.setattr(sweep_mod, "STEPS_EVERY_S", 0.0)
+    monkeypatch.setattr(sweep_mod, "STEPS_EVERY_S_LOG", 0.0)  # pytest's capture is no terminal
     spec = SweepSpec(gamma=271, icosphere=3, until=0.3)
     (point,) = spec.points()
     write_sweep_file(tmp_path, spec.to_dict(), _runs([point]))

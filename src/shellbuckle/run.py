@@ -579,6 +579,17 @@ def _progress(enabled: bool, total: int, initial: int, mesh: Mesh, params) -> _P
     return _Progress(total, initial, mesh, params) if enabled else None
 
 
+def interactive(bar) -> bool:
+    """Whether a tqdm ``bar`` is seen as it is redrawn (a terminal, a notebook), not written
+    frame after frame to a file or a pipe, where a refresh every second fills a log."""
+    if type(bar).__module__.startswith("tqdm.notebook"):
+        return True
+    try:
+        return bool(bar.fp.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
 class _Progress:
     """A run's progress bar: the steps done out of the schedule's, and the last step's dV/V,
     E/kappa, pressure in units of the classical buckling pressure p_c (the unit of the run
@@ -590,10 +601,12 @@ class _Progress:
 
     Within a step that lasts more than :attr:`EVERY_S` (a step on a fine mesh: minutes), the
     bar also shows the step's accepted minimizer iterations so far and its time, refreshed
-    every :attr:`EVERY_S` (:meth:`accepted`, called by the minimizers through
-    :mod:`shellbuckle.solve.listen`)."""
+    every :attr:`EVERY_S` on a terminal or in a notebook, every :attr:`EVERY_S_LOG` where the
+    bar is written to a file or a pipe (a batch job's log) (:meth:`accepted`, called by the
+    minimizers through :mod:`shellbuckle.solve.listen`)."""
 
     EVERY_S = 1.0
+    EVERY_S_LOG = 60.0
 
     def __init__(self, total: int, initial: int, mesh: Mesh, params):
         from tqdm.auto import tqdm
@@ -608,6 +621,7 @@ class _Progress:
         self.redirect = logging_redirect_tqdm(tqdm_class=tqdm)
         self.redirect.__enter__()
         self.last, self.step, self.iterations, self.t0, self.shown = "", None, 0, 0.0, 0.0
+        self.every = self.EVERY_S if interactive(self.bar) else self.EVERY_S_LOG
         self.within = True  # show the iterations within a step (off after a failure)
 
     def begin(self, step: int) -> None:
@@ -619,7 +633,7 @@ class _Progress:
         """A minimizer step was accepted within the current step (:mod:`.solve.listen`)."""
         self.iterations += 1
         t = time.monotonic()
-        if t - self.shown < self.EVERY_S:
+        if t - self.shown < self.every:
             return
         self.shown = t
         minutes, seconds = divmod(int(t - self.t0), 60)

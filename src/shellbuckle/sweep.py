@@ -966,16 +966,18 @@ def _gather(todo, out_dir: Path, catalogue: Catalogue, *, scheduler, workers, pr
                 bar.close()
 
 
-#: How often a sweep's progress bar counts the steps its unfinished runs have stored (s).
+#: How often a sweep's progress bar counts the steps its unfinished runs have stored (s): on a
+#: terminal or in a notebook, and where the bar is written to a file or a pipe (a batch log).
 STEPS_EVERY_S = 5.0
+STEPS_EVERY_S_LOG = 60.0
 
 
 class _Shown:
     """What a sweep's progress bar (``bar``, or None: nothing shown) says beside the runs
     done: the failed runs, and the steps the sweep has stored so far (a run on a fine mesh is
     hours of steps): the steps in the folders of the runs ``names`` beyond those they held
-    when it began, counted every :data:`STEPS_EVERY_S` (:meth:`tick`) and, for a run, once
-    more when it is done."""
+    when it began, counted every :data:`STEPS_EVERY_S` (:data:`STEPS_EVERY_S_LOG` in a log;
+    :meth:`tick`) and, for a run, once more when it is done."""
 
     def __init__(self, bar, out_dir: Path, names):
         self.bar, self.out_dir = bar, Path(out_dir)
@@ -983,6 +985,10 @@ class _Shown:
                        if bar is not None else {})
         self.seen = {}  # the steps made by each run not done yet, at the last count
         self.made, self.failed, self.last = 0, 0, time.monotonic()
+        if bar is not None:
+            from .run import interactive
+
+            self.every = STEPS_EVERY_S if interactive(bar) else STEPS_EVERY_S_LOG
 
     def done(self, name: str, failed: int) -> None:
         self.failed = failed
@@ -996,7 +1002,7 @@ class _Shown:
         self.bar.set_postfix_str(self._text(), refresh=True)
 
     def tick(self) -> None:
-        if self.bar is None or time.monotonic() - self.last < STEPS_EVERY_S:
+        if self.bar is None or time.monotonic() - self.last < self.every:
             return
         self.last = time.monotonic()
         self.seen = {name: _steps_stored(self.out_dir / name) - before
