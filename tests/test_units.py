@@ -166,3 +166,35 @@ def test_the_command_line_takes_a_materials_pressures_in_pascal(tmp_path):
         reduced.table["dV_over_V"].iloc[-1], rel=1e-9)
     assert main([*shell, "--pressures", "2.3e6", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def test_a_material_runs_printed_pressures_are_in_kappa_over_R3_as_their_label_says(tmp_path,
+                                                                                  capsys):
+    """The last step's pressure and the located events' pressures of a run made from a
+    material equal the reduced table's (``table``, κ/R³), and the last step's in Pa equals
+    the SI table's: the stored values are in Pa, and were printed as if they were κ/R³."""
+    import re
+
+    from shellbuckle.cli import main
+    from shellbuckle.run import Run
+    from shellbuckle.store.located import read_located
+    from shellbuckle.store.table import table_in_units
+
+    out = tmp_path / "rubber"
+    assert main(["deflate", "--E", "1e6", "--sigma", "0.5", "--d", "1e-5", "--R", "1e-4",
+                 "--vertices", "200", "--dv", "0.05", "--until", "0.15", "--quiet", "--no-plot",
+                 "--threads", "1", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    run = Run.open(out)
+    reduced = table_in_units(run.table, run.params, "reduced")["pressure"].iloc[-1]
+    si = run.table["pressure"].iloc[-1]
+    assert reduced < 1e3 < si  # the two units differ by kappa/R^3 = 111 Pa here
+    found = re.search(r"pressure = (\S+) kappa/R\^3 \((\S+) Pa\)", printed)
+    assert found, printed
+    assert float(found[1]) == pytest.approx(reduced, rel=1e-5)
+    assert float(found[2]) == pytest.approx(si, rel=1e-5)
+    event = read_located(out)["primary_buckling"]  # stored in Pa; printed in kappa/R^3
+    unit = run.params.kappa / run.params.R ** 3
+    shown = re.search(r"p (\S+) -> (\S+),", printed)
+    assert float(shown[1]) == pytest.approx(event["old"]["pressure"] / unit, rel=1e-4)
+    assert float(shown[2]) == pytest.approx(event["new"]["pressure"] / unit, rel=1e-4)

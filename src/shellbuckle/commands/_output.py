@@ -21,7 +21,8 @@ def report_run(run, *, plot: bool = False) -> int:
               f"E/kappa = {last['E_over_kappa']:.6g}")
     else:
         print(f"steps: {int(last['step'])}, dV/V = {last['dV_over_V']:.4f}, "
-              f"E/kappa = {last['E_over_kappa']:.6g}, pressure = {last['pressure']:.6g}")
+              f"E/kappa = {last['E_over_kappa']:.6g}, "
+              f"pressure = {_pressure(run.params, last['pressure'])}")
     from ..store.located import read_located
 
     points = read_located(run.path)
@@ -70,11 +71,24 @@ def _old_branch_text(branch: dict | None) -> str:
     return " (the old branch without jiggle " + "; ".join(parts) + ")"
 
 
+def _pressure(params, stored) -> str:
+    """A stored pressure (the run's units) in kappa/R^3, and for a shell made from a material
+    in Pa (its SI units) as well."""
+    from ..params import unit_scale
+
+    reduced = f"{stored / unit_scale(params, 'pressure'):.6g} kappa/R^3"
+    return f"{reduced} ({stored:.6g} Pa)" if params.is_material else reduced
+
+
 def print_located(run, points: dict) -> None:
-    """One line per located event: the step reading, the located value and the mechanism."""
+    """One line per located event: the step reading, the located value and the mechanism;
+    pressures in kappa/R^3 (stored in the run's units: Pa for a shell made from a material)."""
     if not points:
         print(f"{run.path}: no buckling event to locate (the run stays a sphere)")
         return
+    from ..params import unit_scale
+
+    unit = unit_scale(run.params, "pressure")
     print("located events (dV/V; pressures in kappa/R^3):")
     table = run.table.set_index("step")
     for name, p in sorted(points.items(), key=lambda item: item[1]["lo"]):
@@ -84,7 +98,8 @@ def print_located(run, points: dict) -> None:
         print(f"  {name:<17} {p['dV_over_V']:.5f} ± {p['uncertainty']:.1e}   (the steps: "
               f"between {before:.4f} and {p['step_dV_over_V']:.4f}, step {k})")
         line = (f"  {'':<17} {old['shape']} -> {new['shape']}, E/kappa {old['E_over_kappa']:.5g} "
-                f"-> {new['E_over_kappa']:.5g}, p {old['pressure']:.5g} -> {new['pressure']:.5g}, "
+                f"-> {new['E_over_kappa']:.5g}, p {old['pressure'] / unit:.5g} -> "
+                f"{new['pressure'] / unit:.5g}, "
                 f"lowest eigenvalue {old['lowest_eigenvalue']:.3g} -> "
                 f"{new['lowest_eigenvalue']:.3g}: {p['mechanism']}")
         line += _old_branch_text(p.get("old_branch"))
