@@ -97,11 +97,25 @@ def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
                                     mutation_scale=11, shrinkA=0, shrinkB=0))
 
 
+def _curve_label(run, x, *, first: bool) -> str:
+    """The legend entry of a run's curve: the run (its seed), or a branch (its folder and
+    the step of its parent it starts from), with the direction of its path; the first also
+    says what the arrowheads along the curves mean."""
+    parent = run.store.parent
+    if isinstance(parent, dict) and parent.get("step") is not None:
+        who = f"{Path(run.path).name}, from step {parent['step']} of {Path(parent['path']).name}"
+    else:
+        who = f"run, seed {run.protocol.seed}"
+    arrows = ", arrowheads along the path" if first else ""
+    return f"{who}: {_direction(x)}{arrows}"
+
+
 def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced"):
     """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
     as p/p_c against dV/V (``units="si"``: p in Pa, for runs made from a material), each with
-    arrows in the direction of its path and labelled with its folder name and direction, and
-    its located events (both ends of each bracket, joined); the
+    arrows in the direction of its path and labelled with its seed, or for a branch its folder
+    and the parent's step it starts from, and its direction, and
+    its located events (both ends of each bracket, joined, with their volumes); the
     first run's parameters set ``p_c`` and the title. The legend is placed off the data
     (:func:`~shellbuckle.plots.render.place_legend`). Saved to ``path`` (PNG, or PDF by the
     suffix) when given; returns the :class:`~matplotlib.figure.Figure`."""
@@ -127,10 +141,11 @@ def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced
             continue
         color = f"C{i % 10}"
         ax.plot(x, y, "o-", ms=3, lw=1.0, color=color, gid=f"pv:{Path(run.path).name}",
-                label=f"{Path(run.path).name} ({_direction(x)})")
+                label=_curve_label(run, x, first=i == 0))
         _arrows(ax, x, y, color)
         mark_jumps(ax, read_located(run.path), lambda side: float(side["pressure"]) / p_unit,
-                   label=(lambda text, x: f"{text}, located") if i == 0 else None, ms=5)
+                   label=(lambda text, x: f"{text}, located at {x:.4f}") if i == 0 else None,
+                   ms=5)
         xmax = max(xmax, float(np.nanmax(x)))
         ymin, ymax = min(ymin, float(np.nanmin(y))), max(ymax, float(np.nanmax(y)))
     xmax *= 1.05

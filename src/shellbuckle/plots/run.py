@@ -64,14 +64,21 @@ def pressure_unit(params, units: str = "reduced") -> tuple[float, str]:
     if check_units(units, params) == "si":
         return 1.0, r"pressure $p$ (Pa)"
     return (theory.classical_pressure(params),
-            r"pressure $p/p_c$,  $p_c = 4\sqrt{f\kappa A}/R^2$ (classical buckling)")
+            rf"pressure $p/p_c$,  $p_c = 4\sqrt{{{_factor(params)}\kappa A}}/R^2$ "
+            "(classical buckling)")
+
+
+def _factor(params) -> str:
+    """The bending factor f of ``p_c = 4 sqrt(f kappa A)/R^2`` as the formulas show it: its
+    value, or nothing where it is 1 (the ``helfrich`` convention)."""
+    return "" if params.bending_factor == 1 else f"{params.bending_factor:g}"
 
 
 def p_c_label(params, units: str = "reduced") -> str:
     """The legend of the classical threshold's line: its formula and value, in the
     table's unit kappa/R^3 (reduced) or in Pa."""
     p_c = theory.classical_pressure(params)
-    f = "" if params.bending_factor == 1 else f"{params.bending_factor:g}"
+    f = _factor(params)
     if check_units(units, params) == "si":
         return rf"classical $p_c=4\sqrt{{{f}\kappa A}}/R^2$ = {p_c:.3g} Pa"
     return (rf"classical $p_c=4\sqrt{{{f}\kappa A}}/R^2$ = "
