@@ -579,14 +579,54 @@ def test_versions_name_the_source_commit_when_run_from_a_git_checkout():
                               check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         tracked = head = ""
-    if not tracked:
-        assert "shellbuckle_git" not in versions
+    if not tracked:  # an installed copy: the commit its build recorded, if any
+        built = package / "_build.json"
+        expected = json.loads(built.read_text())["git"] if built.is_file() else None
+        assert versions.get("shellbuckle_git") == expected
         return
     commit = versions["shellbuckle_git"]
     assert re.fullmatch(r"[0-9a-f]{12}(\+dirty)?", commit) and head.startswith(commit[:12])
     dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
                            text=True, check=True).stdout.strip()
     assert commit.endswith("+dirty") == bool(dirty)
+
+
+def test_an_installed_copy_names_the_commit_its_build_recorded(tmp_path):
+    """Outside a git checkout (``pip install .`` copies the package without ``.git``) the
+    commit is the one ``setup.py`` wrote into ``_build.json``; without that file, or with a
+    damaged one, none."""
+    from shellbuckle.store.meta import source_commit
+
+    package = tmp_path / "shellbuckle"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    assert source_commit(package) is None
+    (package / "_build.json").write_text('{"git": "0123456789ab+dirty"}\n')
+    source_commit.cache_clear()
+    assert source_commit(package) == "0123456789ab+dirty"
+    (package / "_build.json").write_text("{not json")
+    source_commit.cache_clear()
+    assert source_commit(package) is None
+    source_commit.cache_clear()
+
+
+def test_the_build_records_the_commit_the_store_reads_from_the_checkout(monkeypatch):
+    """``setup.py``'s commit (what ``pip install .`` writes into the package) and the run
+    store's own reading of the checkout are the same string, ``+dirty`` included."""
+    import runpy
+
+    import setuptools
+
+    from shellbuckle.store.meta import source_commit
+
+    setup_py = Path(run_module.__file__).resolve().parents[3] / "setup.py"
+    package = Path(run_module.__file__).resolve().parents[1]
+    source_commit.cache_clear()
+    if not setup_py.is_file() or source_commit() is None or (package / "_build.json").exists():
+        pytest.skip("not a git checkout of the source")
+    monkeypatch.setattr(setuptools, "setup", lambda **kwargs: None)
+    hook = runpy.run_path(str(setup_py))
+    assert hook["_commit"]() == source_commit()
 
 
 def test_asking_whether_a_lock_is_held_does_not_make_a_free_lock_look_held(tmp_path):

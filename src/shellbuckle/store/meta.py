@@ -124,26 +124,40 @@ def _versions() -> dict:
 
 
 @functools.lru_cache(maxsize=None)
-def source_commit() -> str | None:
-    """The git commit of shellbuckle's source when it runs from a git checkout (an editable
-    install), with ``+dirty`` if the package's files differ from it; None otherwise.
+def source_commit(package: Path | None = None) -> str | None:
+    """The git commit of shellbuckle's source (``package``: its folder, by default this
+    one's): when it runs from a git checkout (an editable install), that checkout's commit,
+    with ``+dirty`` if the package's files differ from it; when it was installed from a
+    checkout (``pip install .``), the commit the build recorded in ``_build.json`` (see
+    ``setup.py``); None otherwise (an install from an archive without git).
 
     The package version does not tell two commits apart, and after buckling a run's
     trajectory depends on the code down to round-off, so the commit is what reproduces a run."""
-    package = Path(__file__).resolve().parents[1]
+    package = Path(__file__).resolve().parents[1] if package is None else Path(package)
     git = ["git", "-C", str(package)]
     try:
         tracked = subprocess.run(git + ["ls-files", "--", "__init__.py"], capture_output=True,
                                  text=True, timeout=10, check=True).stdout.strip()
-        if not tracked:
-            return None
-        commit = subprocess.run(git + ["rev-parse", "--short=12", "HEAD"], capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(git + ["status", "--porcelain", "--", "."], capture_output=True,
-                               text=True, timeout=10, check=True).stdout.strip()
+        if tracked:
+            commit = subprocess.run(git + ["rev-parse", "--short=12", "HEAD"],
+                                    capture_output=True, text=True, timeout=10,
+                                    check=True).stdout.strip()
+            dirty = subprocess.run(git + ["status", "--porcelain", "--", "."],
+                                   capture_output=True, text=True, timeout=10,
+                                   check=True).stdout.strip()
+            return f"{commit}+dirty" if dirty else commit or None
     except (OSError, subprocess.SubprocessError):
+        pass
+    return _built_commit(package)
+
+
+def _built_commit(package: Path) -> str | None:
+    """The commit ``setup.py`` recorded in ``package/_build.json`` at build time, if any."""
+    try:
+        commit = json.loads((package / "_build.json").read_text(encoding="utf-8")).get("git")
+    except (OSError, ValueError, AttributeError):
         return None
-    return f"{commit}+dirty" if dirty else commit or None
+    return commit if isinstance(commit, str) and commit else None
 
 
 def _session() -> dict:
