@@ -1,6 +1,7 @@
 """Paths in gamma and c0 at fixed volume: invariances, consistency, resuming, bad input."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -231,6 +232,9 @@ def test_cli_path_then_deflation_and_comparison(parent, tmp_path, capsys):
     text = capsys.readouterr().out
     result = json.loads(text[text.index("{"):])
     deflated = Run.open(f"{out}_deflated")
+    # the volume part has the figures of a run, the path in gamma (fixed dV/V) has none
+    assert {p.name for p in Path(deflated.path).glob("*.png")} == {"deflation.png", "pv.png"}
+    assert not list(out.glob("*.png"))
     assert deflated.params.gamma == 2333.0
     assert deflated.table["dV_over_V"].iloc[-1] == pytest.approx(0.33, abs=1e-12)
     Ea, Eb = deflated.table["E_total"].iloc[-1], parent.table["E_total"].iloc[3]

@@ -331,10 +331,10 @@ def add_threads_option(parser) -> None:
                              + allowed("threads"))
 
 
-def add_run_output_options(parser) -> None:
-    """``--no-plot`` and ``--quiet`` of the commands that make or extend a run."""
-    parser.add_argument("--no-plot", action="store_true",
-                        help="do not write the figure at the end")
+def add_run_output_options(parser, plot: str = "do not write the figures at the end") -> None:
+    """``--no-plot`` (its help: ``plot``) and ``--quiet`` of the commands that make or extend
+    a run."""
+    parser.add_argument("--no-plot", action="store_true", help=plot)
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

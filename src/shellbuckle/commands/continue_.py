@@ -74,7 +74,9 @@ def register(sub) -> None:
                "the step of --compare (default: the step whose dV/V is closest)")
     then.add_argument("--json", action="store_true", help="print the comparison as JSON")
     parser.add_argument("--out", required=True, metavar="OUT", help="run folder of the path")
-    add_run_output_options(parser)
+    add_run_output_options(parser, plot="do not write the figures at the end of a volume path "
+                           "or of --then-deflate-to (a path in gamma or c0 has none: dV/V "
+                           "stays fixed along it)")
     parser.set_defaults(func=continue_run)
 
 
@@ -205,7 +207,7 @@ def _parameter_path(parent, step: int, args, options: dict):
     dv = abs(protocol_defaults()["dv"] if args.dv is None else args.dv)
     last = continue_from(run, -1, then_out, dv=dv if args.then_deflate_to > start else -dv,
                          until=args.then_deflate_to, progress=not args.quiet)
-    report_run(last)
+    report_run(last, plot=not args.no_plot)
     return last
 
 
