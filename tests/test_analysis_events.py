@@ -109,3 +109,41 @@ def test_gamma_271_primary_buckling_between_crossing_and_classical(tmp_path_fact
     assert primary.dV_over_V <= theory.classical_threshold(params).dV_over_V_exact + dv
     p = run.table["pressure"].to_numpy()
     assert p[primary.step] < (1 - PRESSURE_DROP) * p[primary.step - 1]
+
+
+@pytest.mark.parametrize("dv, until", [(0.038, 0.038), (0.019, 0.038)])
+def test_a_buckling_a_step_after_a_long_step_or_from_the_unloaded_sphere_is_confirmed(
+        tmp_path, dv, until):
+    """γ = 15163 buckles before ΔV/V = 0.038. In one step from the unloaded sphere (p = 0
+    before it), or a step after a step whose pressure was still rising, the pressure does not
+    drop by 20 % from the step before; what shows the buckling is the sphere branch: the
+    buckled step's energy lies below the uniformly shrunk sphere's at its volume (an
+    independent oracle), and its pressure far below that branch's."""
+    from shellbuckle.mesh import random_sphere
+    from shellbuckle.run import deflate
+
+    params = ShellParameters.from_gamma(15163.0, nu=1 / 3)
+    run = deflate(random_sphere(400, seed=0), params, dv=dv, until=until, seed=0,
+                  out=tmp_path / "r", locate=False, threads=1, progress=False)
+    (primary,) = [e for e in events(run) if e.name == "primary_buckling"]
+    row = run.table.set_index("step").loc[primary.step]
+    assert row["E_total"] < theory.U_sphere_exact(row["dV_over_V"], params)  # buckled
+    before = float(run.table.set_index("step").loc[primary.step - 1, "pressure"])
+    assert not row["pressure"] < (1 - PRESSURE_DROP) * before  # step to step: no 20 % drop
+    assert primary.confirmed, primary.description
+
+
+def test_a_shape_change_on_the_sphere_branchs_pressure_is_not_confirmed(tmp_path):
+    """A dent seen while the pressure stays on the uniformly shrunk sphere's curve (a shape
+    the classifier took for a capsule, the shell not having snapped) is unconfirmed."""
+    m = mesh("icosphere")
+    params = ShellParameters.from_gamma(1000.0, nu=1 / 3)
+    with RunStore.create(tmp_path / "r", params=params.to_dict(), protocol={}, X0=m.X,
+                         faces=m.faces) as store:
+        for k, dv in enumerate((0.0, 0.02, 0.04)):
+            X = m.X * (1 - dv) ** (1 / 3) if k < 2 else inverted_cap(m.X, np.radians(30))
+            store.append_step(k, X, {"dV_over_V": dv, "E_stretch": 1.0, "E_bend": 1.0,
+                                     "pressure": float(theory.pressure_sphere_exact(dv, params))})
+    (primary,) = events(tmp_path / "r")
+    assert (primary.name, primary.step, primary.confirmed) == ("primary_buckling", 2, False)
+    assert "0 % below the sphere branch's" in primary.description

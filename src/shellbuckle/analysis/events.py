@@ -6,8 +6,13 @@ pressure, energies and Hessian inertia:
 
 ``primary_buckling``
     the first step whose shape is not ``sphere`` (sphere -> one dent, or dimples). It is
-    *confirmed* when the pressure (the Lagrange multiplier of the volume constraint) drops at
-    that step, ``p_k < (1 - PRESSURE_DROP) p_(k-1)``, or, without pressures, the stretching
+    *confirmed* when the pressure (the Lagrange multiplier of the volume constraint) lies at
+    that step at least ``PRESSURE_DROP`` below the sphere branch's at its volume: the previous
+    step's pressure carried along the uniformly shrunk sphere's curve
+    (:func:`shellbuckle.theory.pressure_sphere_exact`), ``p_(k-1) p_s(V_k)/p_s(V_(k-1))``, or
+    at the first step, whose predecessor is the unloaded sphere, ``p_s(V_k)`` itself (the
+    branch's pressure rises with the volume lost: a step-to-step drop of the pressure alone
+    misses a buckling a step after a long step); without pressures, when the stretching
     energy drops while the bending energy jumps (the snap-through of Fig. 9).
 ``axisymmetry_loss``
     the paper's first secondary threshold, polygonization of the rim: the first step after
@@ -72,11 +77,28 @@ def _first_persistent(flags: np.ndarray, start: int, persistence: int) -> int | 
     return None
 
 
-def _primary_confirmation(table, i: int) -> tuple[bool, str]:
+def _primary_confirmation(table, i: int, sphere=None) -> tuple[bool, str]:
+    """Whether the first buckled step ``i`` shows the pressure drop of a buckling, and why.
+    ``sphere(k)``: the uniformly shrunk sphere's pressure at the volume of row ``k`` (None:
+    not known). The step's pressure is compared with the sphere branch's at its volume: the
+    previous step's pressure carried along the branch, ``p_(k-1) sphere(k)/sphere(k-1)``, or
+    at the first step (the step before is the unloaded sphere) ``sphere(k)`` itself; without
+    ``sphere``, with ``p_(k-1)``."""
     if i == 0:
         return False, "already buckled at the first step"
     prev, cur = table.iloc[i - 1], table.iloc[i]
     p0, p1 = float(prev.get("pressure", math.nan)), float(cur.get("pressure", math.nan))
+    if math.isfinite(p1) and sphere is not None:
+        s0, s1 = sphere(i - 1), sphere(i)
+        expected = math.nan
+        if math.isfinite(p0) and p0 > 0 and math.isfinite(s0) and s0 > 0:
+            expected, start = p0 * s1 / s0, f"pressure {p0:.4g} -> {p1:.4g}"
+        elif p0 == 0:  # the unloaded sphere before it
+            expected, start = s1, f"pressure {p1:.4g}"
+        if math.isfinite(expected) and expected > 0:
+            drop = 1.0 - p1 / expected
+            return drop >= PRESSURE_DROP, (f"{start}, {100 * drop:.0f} % below the sphere "
+                                           f"branch's {expected:.4g} at this volume")
     if math.isfinite(p0) and math.isfinite(p1) and p0 > 0:
         drop = 1.0 - p1 / p0
         return drop >= PRESSURE_DROP, f"pressure {p0:.4g} -> {p1:.4g} ({100 * drop:.0f} % drop)"
@@ -86,6 +108,19 @@ def _primary_confirmation(table, i: int) -> tuple[bool, str]:
         ok = s1 < s0 and b1 > b0
         return ok, f"E_stretch {s0:.4g} -> {s1:.4g}, E_bend {b0:.4g} -> {b1:.4g}"
     return False, "no pressure or energies to confirm"
+
+
+def _sphere_pressure(run, dV_over_V: float, k: int) -> float:
+    """The uniformly shrunk sphere's pressure at ``dV_over_V`` with the parameters of step
+    ``k`` (NaN outside 0 < dV/V < 1 or for parameters it does not know)."""
+    from ..theory import pressure_sphere_exact
+
+    if not 0.0 < dV_over_V < 1.0:
+        return math.nan
+    try:
+        return float(pressure_sphere_exact(dV_over_V, run.params_at(int(k))))
+    except (ValueError, KeyError):
+        return math.nan
 
 
 def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
@@ -110,7 +145,7 @@ def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
     buckled = shape != "sphere"
     if buckled.any():
         i = int(np.argmax(buckled))
-        ok, why = _primary_confirmation(table, i)
+        ok, why = _primary_confirmation(table, i, lambda k: _sphere_pressure(run, dv[k], step[k]))
         out.append(Event("primary_buckling", int(step[i]), float(dv[i]), ok,
                          f"{shape[i - 1] if i else 'start'} -> {shape[i]}; {why}"))
         lost = np.isin(shape, ("polygonal", "wrinkled"))

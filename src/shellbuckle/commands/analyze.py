@@ -26,6 +26,7 @@ def register(sub) -> None:
 
 def _cmd(args) -> int:
     from ..analysis import analyze_run, events
+    from ..analysis.events import PRESSURE_DROP
     found = run_folder("DIR", args.dir, params=False)  # the stored shapes only
     if not os.access(found.path, os.W_OK):
         raise ValueError(f"DIR {args.dir}: the run folder is not writable (the analysis is "
@@ -40,13 +41,19 @@ def _cmd(args) -> int:
 
         return print_json({"run": str(found.path), "steps": len(table),
                            "events": [vars(e) for e in found_events]})
-    print(f"{found.path}: {len(table)} steps analysed, up to dV/V = "
-          f"{table['dV_over_V'].iloc[-1]:.4f}")
+    print(f"{found.path}: steps {int(table['step'].iloc[0])}-{int(table['step'].iloc[-1])} "
+          f"analysed, up to dV/V = {table['dV_over_V'].iloc[-1]:.4f}")
     counts = table["shape"].value_counts()
     print("  shapes: " + ", ".join(f"{name} {n}" for name, n in counts.items()))
     if not found_events:
         print("  no event (the shell stayed a sphere)")
+    at_step = dict(zip(table["step"].astype(int), table["dV_over_V"].astype(float)))
     for e in found_events:
         note = "" if e.confirmed is None else ("  [confirmed]" if e.confirmed else "  [unconfirmed]")
-        print(f"  {e.name:<17} step {e.step:>4}  dV/V = {e.dV_over_V:.4f}  {e.description}{note}")
+        print(f"  {e.name:<17} step {e.step:>4}  dV/V = {at_step.get(e.step, e.dV_over_V):.4f}"
+              f"  {e.description}{note}")
+    if any(e.confirmed is not None for e in found_events):
+        print(f"  [confirmed]: at the primary buckling the pressure is at least "
+              f"{100 * PRESSURE_DROP:.0f} % below the sphere branch's at that volume, as after "
+              "a buckling; [unconfirmed]: the shape changed without it")
     return 0
