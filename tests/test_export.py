@@ -71,6 +71,21 @@ def test_format_is_taken_from_the_extension_or_appended(runs, tmp_path):
     assert out == tmp_path / "b.ply" and out.is_file()
 
 
+def test_a_ply_file_is_written_without_a_warning_and_reads_back(runs, tmp_path, capfd):
+    """PLY has no 64-bit integers: the faces are written as 32-bit ones, so meshio neither
+    converts them nor prints its own warning, and they read back as they were."""
+    import meshio
+
+    run = runs["juelicher"]
+    capfd.readouterr()
+    out = export_step(run, 1, tmp_path / "c.ply")
+    captured = capfd.readouterr()
+    assert "Warning" not in captured.out + captured.err
+    back = meshio.read(out)
+    np.testing.assert_array_equal(back.cells_dict["triangle"], run.faces)
+    np.testing.assert_allclose(back.points, run.positions(1), rtol=1e-15)
+
+
 # ------------------------------------------------------------------------------ data fields
 @pytest.mark.parametrize("fmt", ["vtk", "vtu"])
 def test_point_and_cell_data(runs, tmp_path, fmt):

@@ -132,8 +132,10 @@ def write_mesh(path, mesh: Mesh, point_data: dict | None = None,
                              f"{point_data[bad[0]].shape}; use .vtu or .vtk for vector data")
     import meshio
 
+    # PLY has no 64-bit integers (meshio would convert them and print a warning of its own)
+    index = np.int32 if ext == ".ply" else np.int64
     out = meshio.Mesh(np.asarray(mesh.X, dtype=np.float64),
-                      [("triangle", np.asarray(mesh.faces, dtype=np.int64))],
+                      [("triangle", np.asarray(mesh.faces, dtype=index))],
                       point_data=point_data,
                       cell_data={k: [v] for k, v in cell_data.items()})
     kwargs = {"binary": True} if ext == ".stl" else {}
