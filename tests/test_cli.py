@@ -277,3 +277,38 @@ def test_an_export_suffix_that_does_not_match_its_format_is_bad_input(small_run,
     err = capsys.readouterr().err.strip()
     assert f"--out {out}" in err and ".vtu" in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_a_reader_that_closes_the_pipe_ends_a_command_quietly(monkeypatch, capsys):
+    """`shellbuckle analyze DIR | head`: when the reader of standard output goes away the
+    command stops with 141 (128 + SIGPIPE), as Unix tools do, and says nothing on stderr (it
+    printed "failed: BrokenPipeError"); a broken pipe elsewhere stays a failure (exit 1)."""
+    import io
+    import os
+    import signal
+    import sys
+
+    import shellbuckle.commands.table as table
+
+    def lots(args):
+        for _ in range(10_000):
+            print("x" * 100)
+        return 0
+
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone: writing raises BrokenPipeError (SIGPIPE is ignored)
+    stdout = io.TextIOWrapper(io.FileIO(write, "w"), line_buffering=False)
+    monkeypatch.setattr(table, "_cmd", lots)
+    monkeypatch.setattr(sys, "stdout", stdout)
+    code = main(["table", "somewhere"])
+    monkeypatch.undo()
+    assert code == 128 + signal.SIGPIPE
+    assert capsys.readouterr().err == ""
+    stdout.close()
+
+    def broken_elsewhere(args):
+        raise BrokenPipeError("a worker's connection")
+
+    monkeypatch.setattr(table, "_cmd", broken_elsewhere)
+    assert main(["table", "somewhere"]) == 1
+    assert "failed: BrokenPipeError" in capsys.readouterr().err

@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import importlib
 import logging
+import os
 import pkgutil
 import signal
 import sys
@@ -115,6 +116,12 @@ def main(argv=None) -> int:
         return 2
     except KeyboardInterrupt as exc:
         return _interrupted(args.command, exc)
+    except BrokenPipeError as exc:
+        if _reader_gone():  # `shellbuckle analyze DIR | head`: stop quietly, as Unix tools do
+            return 128 + signal.SIGPIPE
+        print(f"shellbuckle {args.command}: failed: {type(exc).__name__}: {exc}",
+              file=sys.stderr)
+        return 1
     except Exception as exc:  # a failure during the work, not bad input
         interrupt = interrupt_of(exc)
         if interrupt is not None:
@@ -125,6 +132,26 @@ def main(argv=None) -> int:
         why = exc if isinstance(exc, WorkFailed) else f"{type(exc).__name__}: {exc}"
         print(f"shellbuckle {args.command}: failed: {why}", file=sys.stderr)
         return 1
+
+
+def _reader_gone() -> bool:
+    """Whether standard output is a pipe whose reader has closed it (the pipe reports an error
+    or hang-up to ``poll``); if so, it is pointed at the null device, so that Python's own
+    flush at exit does not report the broken pipe again. False where it cannot be told."""
+    import select
+
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        gone = any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no file descriptor, no poll (Windows)
+        return False
+    if gone:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    return gone
 
 
 def _interrupted(command: str, interrupt: KeyboardInterrupt) -> int:
