@@ -18,8 +18,16 @@ HERE = Path(__file__).resolve().parent
 
 
 def _commit():
-    git = ["git", "-C", str(HERE)]
+    """This checkout's commit (``+dirty`` if the package's files differ from it); None where
+    git cannot tell, or where the package is not tracked here (an unpacked archive inside
+    some other repository)."""
+    git = ["git", "--no-optional-locks", "-C", str(HERE)]
     try:
+        tracked = subprocess.run(git + ["ls-files", "--", "src/shellbuckle/__init__.py"],
+                                 capture_output=True, text=True, timeout=10,
+                                 check=True).stdout.strip()
+        if not tracked:
+            return None
         commit = subprocess.run(git + ["rev-parse", "--short=12", "HEAD"], capture_output=True,
                                 text=True, timeout=10, check=True).stdout.strip()
         dirty = subprocess.run(git + ["status", "--porcelain", "--", "src/shellbuckle"],
@@ -33,10 +41,12 @@ def _commit():
 class BuildWithCommit(build_py):
     def run(self):
         super().run()
+        target = Path(self.build_lib) / "shellbuckle" / "_build.json"
         commit = None if getattr(self, "editable_mode", False) else _commit()
         if commit:
-            target = Path(self.build_lib) / "shellbuckle" / "_build.json"
             target.write_text(json.dumps({"git": commit}) + "\n", encoding="utf-8")
+        else:  # never a commit left there by an earlier build of the same tree
+            target.unlink(missing_ok=True)
 
 
 setup(cmdclass={"build_py": BuildWithCommit})

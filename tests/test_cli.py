@@ -306,6 +306,18 @@ def test_a_reader_that_closes_the_pipe_ends_a_command_quietly(monkeypatch, capsy
     assert capsys.readouterr().err == ""
     stdout.close()
 
+    # a short output still in the buffer when the command returns: the same
+    read, write = os.pipe()
+    os.close(read)
+    stdout = io.TextIOWrapper(io.FileIO(write, "w"), line_buffering=False)
+    monkeypatch.setattr(table, "_cmd", lambda args: print("one short line"))
+    monkeypatch.setattr(sys, "stdout", stdout)
+    code = main(["table", "somewhere"])
+    monkeypatch.undo()
+    assert code == 128 + signal.SIGPIPE
+    assert capsys.readouterr().err == ""
+    stdout.close()
+
     def broken_elsewhere(args):
         raise BrokenPipeError("a worker's connection")
 

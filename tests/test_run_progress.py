@@ -264,6 +264,15 @@ def test_a_bar_written_to_a_log_refreshes_within_a_step_once_a_minute(monkeypatc
             monkeypatch.undo()
             progress.close(False)
     assert run_mod._Progress.EVERY_S_LOG >= 60 * run_mod._Progress.EVERY_S
+    # in a notebook tqdm.auto's bar is a subclass of the notebook's, defined in tqdm.auto, and
+    # writes to the kernel's stream, which is no tty: both are seen as a notebook
+    from types import SimpleNamespace
+
+    notebook = type("tqdm_notebook", (), {"__module__": "tqdm.notebook"})
+    assert run_mod.interactive(type("tqdm", (notebook,), {"__module__": "tqdm.auto"})())
+    kernel = type("OutStream", (io.StringIO,), {"__module__": "ipykernel.iostream"})
+    assert run_mod.interactive(SimpleNamespace(fp=kernel()))
+    assert not run_mod.interactive(SimpleNamespace(fp=io.StringIO()))
     # a sweep's bar counts the steps made as often: every 5 s on a terminal, every minute in a log
     import shellbuckle.sweep as sweep_mod
 

@@ -615,8 +615,7 @@ def test_the_build_records_the_commit_the_store_reads_from_the_checkout(monkeypa
     store's own reading of the checkout are the same string, ``+dirty`` included."""
     import runpy
 
-    import setuptools
-
+    setuptools = pytest.importorskip("setuptools")  # not in every environment (Python >= 3.12)
     from shellbuckle.store.meta import source_commit
 
     setup_py = Path(run_module.__file__).resolve().parents[3] / "setup.py"

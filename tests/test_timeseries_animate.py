@@ -216,7 +216,8 @@ def test_family_finds_the_branch_and_pv_draws_both_paths(family, tmp_path):
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert any("deflation" in t for t in labels) and any("re-inflation" in t for t in labels)
     # the run by its seed, the branch by the parent's step it starts from
-    assert f"run, seed {run.protocol.seed}: deflation, arrowheads along the path" in labels
+    assert (f"{Path(run.path).name}, seed {run.protocol.seed}: deflation, arrowheads along "
+            "the path") in labels
     assert any(f"from step {back.store.parent['step']} of {Path(run.path).name}: re-inflation"
                in t for t in labels), labels
     # the arrows point the way each path goes: right on the deflation, left on the way back

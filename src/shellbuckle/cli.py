@@ -107,7 +107,9 @@ def main(argv=None) -> int:
         return 2
     try:
         with _sigterm_interrupts():
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a reader gone shows here while the output was still buffered
+        return code
     except (ValueError, FileNotFoundError) as exc:
         interrupt = interrupt_of(exc)
         if interrupt is not None:

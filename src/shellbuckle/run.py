@@ -582,10 +582,13 @@ def _progress(enabled: bool, total: int, initial: int, mesh: Mesh, params) -> _P
 def interactive(bar) -> bool:
     """Whether a tqdm ``bar`` is seen as it is redrawn (a terminal, a notebook), not written
     frame after frame to a file or a pipe, where a refresh every second fills a log."""
-    if type(bar).__module__.startswith("tqdm.notebook"):
+    if any(c.__module__.startswith("tqdm.notebook") for c in type(bar).__mro__):
+        return True  # tqdm.auto's class in a notebook is a subclass defined in tqdm.auto
+    fp = getattr(bar, "fp", None)
+    if type(fp).__module__.startswith("ipykernel"):  # a kernel's stream: shown in a notebook
         return True
     try:
-        return bool(bar.fp.isatty())
+        return bool(fp.isatty())
     except (AttributeError, ValueError, OSError):
         return False
 

@@ -40,6 +40,7 @@ from .params import (ShellParameters, check_caption, d_over_R, gamma_from_d_over
                      thickness_factor)
 
 __all__ = ["U_sphere", "U_sphere_exact", "pressure_sphere", "pressure_sphere_exact",
+           "pressure_sphere_bending",
            "dV_over_V_of_alpha", "alpha_of_dV_over_V", "U_axisym", "U_axisym_of_dV",
            "U_axisym_small_alpha", "U_axisym_asymptotic", "U_axisym_asymptotic_of_dV",
            "crossing", "crossing_asymptotic", "ClassicalThreshold", "classical_threshold",
@@ -131,6 +132,22 @@ def pressure_sphere_exact(dV_over_V, params: ShellParameters):
     p = params
     s, s2_minus_1 = _stretch(x)
     return _out(-p.A * s2_minus_1 / ((1.0 - p.nu) * s * p.R))
+
+
+def pressure_sphere_bending(dV_over_V, params: ShellParameters, c0: float):
+    """The bending part of the uniformly shrunk sphere's pressure with spontaneous curvature
+    ``c0`` (``c = c1 + c2``, units 1/length): its bending energy ``2 pi f kappa (2 - c0 r)^2``
+    at radius ``r = s R`` gives
+
+        p_b = -dE_b/dV = f kappa c0 (2 - c0 r) / r^2,   s = (1 - dV/V)^(1/3),
+
+    (``f`` the convention's bending factor), to be added to :func:`pressure_sphere_exact`:
+    small for the sphere's own ``c0 = 2/R`` (``4 f kappa (1 - s)/(s^2 R^3)``, 1e-4 of the
+    stretching part at the paper's γ), not for a shell that prefers another curvature."""
+    x = _checked("dV_over_V", dV_over_V, -np.inf, 1.0, lo_open=True, hi_open=True)
+    p = params
+    r = np.cbrt(1.0 - x) * p.R
+    return _out(p.bending_factor * p.kappa * c0 * (2.0 - c0 * r) / r ** 2)
 
 
 # --- inverted spherical cap (capsule) -----------------------------------------------------------

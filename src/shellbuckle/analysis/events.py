@@ -77,13 +77,14 @@ def _first_persistent(flags: np.ndarray, start: int, persistence: int) -> int | 
     return None
 
 
-def _primary_confirmation(table, i: int, sphere=None) -> tuple[bool, str]:
+def _primary_confirmation(table, i: int, sphere=None, unit: float = 1.0) -> tuple[bool, str]:
     """Whether the first buckled step ``i`` shows the pressure drop of a buckling, and why.
     ``sphere(k)``: the uniformly shrunk sphere's pressure at the volume of row ``k`` (None:
     not known). The step's pressure is compared with the sphere branch's at its volume: the
     previous step's pressure carried along the branch, ``p_(k-1) sphere(k)/sphere(k-1)``, or
     at the first step (the step before is the unloaded sphere) ``sphere(k)`` itself; without
-    ``sphere``, with ``p_(k-1)``."""
+    ``sphere``, with ``p_(k-1)``. Pressures are said in units of ``unit`` (the run's
+    kappa/R^3 in its units)."""
     if i == 0:
         return False, "already buckled at the first step"
     prev, cur = table.iloc[i - 1], table.iloc[i]
@@ -92,16 +93,17 @@ def _primary_confirmation(table, i: int, sphere=None) -> tuple[bool, str]:
         s0, s1 = sphere(i - 1), sphere(i)
         expected = math.nan
         if math.isfinite(p0) and p0 > 0 and math.isfinite(s0) and s0 > 0:
-            expected, start = p0 * s1 / s0, f"pressure {p0:.4g} -> {p1:.4g}"
+            expected, start = p0 * s1 / s0, f"pressure {p0 / unit:.4g} -> {p1 / unit:.4g}"
         elif p0 == 0:  # the unloaded sphere before it
-            expected, start = s1, f"pressure {p1:.4g}"
+            expected, start = s1, f"pressure {p1 / unit:.4g}"
         if math.isfinite(expected) and expected > 0:
             drop = 1.0 - p1 / expected
             return drop >= PRESSURE_DROP, (f"{start}, {100 * drop:.0f} % below the sphere "
-                                           f"branch's {expected:.4g} at this volume")
+                                           f"branch's {expected / unit:.4g} at this volume")
     if math.isfinite(p0) and math.isfinite(p1) and p0 > 0:
         drop = 1.0 - p1 / p0
-        return drop >= PRESSURE_DROP, f"pressure {p0:.4g} -> {p1:.4g} ({100 * drop:.0f} % drop)"
+        return drop >= PRESSURE_DROP, (f"pressure {p0 / unit:.4g} -> {p1 / unit:.4g} "
+                                       f"({100 * drop:.0f} % drop)")
     s0, s1 = float(prev.get("E_stretch", math.nan)), float(cur.get("E_stretch", math.nan))
     b0, b1 = float(prev.get("E_bend", math.nan)), float(cur.get("E_bend", math.nan))
     if all(map(math.isfinite, (s0, s1, b0, b1))):
@@ -111,15 +113,20 @@ def _primary_confirmation(table, i: int, sphere=None) -> tuple[bool, str]:
 
 
 def _sphere_pressure(run, dV_over_V: float, k: int) -> float:
-    """The uniformly shrunk sphere's pressure at ``dV_over_V`` with the parameters of step
-    ``k`` (NaN outside 0 < dV/V < 1 or for parameters it does not know)."""
-    from ..theory import pressure_sphere_exact
+    """The uniformly shrunk sphere's pressure at ``dV_over_V`` with the parameters and the
+    spontaneous curvature of step ``k``, stretching and bending parts
+    (:func:`~shellbuckle.theory.pressure_sphere_exact`,
+    :func:`~shellbuckle.theory.pressure_sphere_bending`); NaN outside 0 < dV/V < 1 or for
+    parameters it does not know."""
+    from ..theory import pressure_sphere_bending, pressure_sphere_exact
 
     if not 0.0 < dV_over_V < 1.0:
         return math.nan
     try:
-        return float(pressure_sphere_exact(dV_over_V, run.params_at(int(k))))
-    except (ValueError, KeyError):
+        params = run.params_at(int(k))
+        return float(pressure_sphere_exact(dV_over_V, params)
+                     + pressure_sphere_bending(dV_over_V, params, run.c0_at(int(k))))
+    except (ValueError, KeyError, TypeError):
         return math.nan
 
 
@@ -145,7 +152,10 @@ def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
     buckled = shape != "sphere"
     if buckled.any():
         i = int(np.argmax(buckled))
-        ok, why = _primary_confirmation(table, i, lambda k: _sphere_pressure(run, dv[k], step[k]))
+        from ..params import unit_scale
+
+        ok, why = _primary_confirmation(table, i, lambda k: _sphere_pressure(run, dv[k], step[k]),
+                                        unit_scale(run.params, "pressure"))
         out.append(Event("primary_buckling", int(step[i]), float(dv[i]), ok,
                          f"{shape[i - 1] if i else 'start'} -> {shape[i]}; {why}"))
         lost = np.isin(shape, ("polygonal", "wrinkled"))

@@ -98,14 +98,16 @@ def _arrows(ax, x, y, color, n_arrows: int = 6) -> None:
 
 
 def _curve_label(run, x, *, first: bool) -> str:
-    """The legend entry of a run's curve: the run (its seed), or a branch (its folder and
-    the step of its parent it starts from), with the direction of its path; the first also
-    says what the arrowheads along the curves mean."""
+    """The legend entry of a run's curve: its folder, with its seed, or for a branch the step
+    of its parent it starts from, and the direction of its path; the first also says what the
+    arrowheads along the curves mean."""
     parent = run.store.parent
+    name = Path(run.path).name
     if isinstance(parent, dict) and parent.get("step") is not None:
-        who = f"{Path(run.path).name}, from step {parent['step']} of {Path(parent['path']).name}"
+        of = f" of {Path(parent['path']).name}" if isinstance(parent.get("path"), str) else ""
+        who = f"{name}, from step {parent['step']}{of}"
     else:
-        who = f"run, seed {run.protocol.seed}"
+        who = f"{name}, seed {run.protocol.seed}"
     arrows = ", arrowheads along the path" if first else ""
     return f"{who}: {_direction(x)}{arrows}"
 
@@ -113,8 +115,8 @@ def _curve_label(run, x, *, first: bool) -> str:
 def plot_pv(runs, path=None, *, theory_curve: bool = True, units: str = "reduced"):
     """The figure: ``runs`` (a Run or a list of Runs; :func:`family` gives a run's family)
     as p/p_c against dV/V (``units="si"``: p in Pa, for runs made from a material), each with
-    arrows in the direction of its path and labelled with its seed, or for a branch its folder
-    and the parent's step it starts from, and its direction, and
+    arrows in the direction of its path and labelled with its folder and seed, or for a branch
+    the parent's step it starts from, and its direction, and
     its located events (both ends of each bracket, joined, with their volumes); the
     first run's parameters set ``p_c`` and the title. The legend is placed off the data
     (:func:`~shellbuckle.plots.render.place_legend`). Saved to ``path`` (PNG, or PDF by the

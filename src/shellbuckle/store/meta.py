@@ -134,7 +134,7 @@ def source_commit(package: Path | None = None) -> str | None:
     The package version does not tell two commits apart, and after buckling a run's
     trajectory depends on the code down to round-off, so the commit is what reproduces a run."""
     package = Path(__file__).resolve().parents[1] if package is None else Path(package)
-    git = ["git", "-C", str(package)]
+    git = ["git", "--no-optional-locks", "-C", str(package)]
     try:
         tracked = subprocess.run(git + ["ls-files", "--", "__init__.py"], capture_output=True,
                                  text=True, timeout=10, check=True).stdout.strip()
