@@ -173,3 +173,20 @@ def test_the_sphere_branchs_pressure_with_its_bending_part_is_the_simulations(tm
         assert p == pytest.approx(stretching + bending, abs=0.015 * abs(stretching))
     if c0 == 6.0:
         assert run.table["pressure"].iloc[1] < 0 < stretching
+
+
+def test_a_run_that_starts_buckled_has_no_primary_buckling_and_only_later_changes(tmp_path):
+    """A branch continued from a buckled step (a re-inflation, a further deflation) starts
+    buckled: no primary buckling of its own (it was reported at its step 0, at the branch's
+    start volume, as a threshold), and a secondary event only where its class changes after
+    its first step."""
+    m = mesh("random")
+    path = tmp_path / "branch"
+    with RunStore.create(path, params={"gamma": 1000.0}, protocol={"dv": 0.02}, X0=m.X,
+                         faces=m.faces) as store:
+        for k, name in enumerate(("cap40", "cap45", "poly4", "poly4", "poly4")):
+            store.append_step(k, _conformation(name, m.X, k),
+                              {"dV_over_V": 0.3 + 0.02 * k, "pressure": 7.0, "inertia": 0})
+    found = [(e.name, e.step) for e in events(path)]
+    assert found == [("axisymmetry_loss", 2)]
+    assert np.isnan(thresholds(path)["primary_buckling"])

@@ -26,6 +26,10 @@ pressure, energies and Hessian inertia:
     accepted state (column ``inertia``, missing where not computed) differs from the previous
     step's.
 
+A run that starts buckled (a branch continued from a step of another run, e.g. a
+re-inflation) has no primary buckling of its own, and a secondary event only where its shape
+changes after its first step.
+
 Each event gives the step and its ``dV_over_V`` (the relative volume change reached at that
 step, so the threshold lies between the previous step's value and this one: its
 ``resolution`` is that step). Where the run's threshold events were located by bisection
@@ -154,22 +158,24 @@ def events(run_or_path, table=None, *, located: bool = True) -> list[Event]:
         i = int(np.argmax(buckled))
         from ..params import unit_scale
 
-        ok, why = _primary_confirmation(table, i, lambda k: _sphere_pressure(run, dv[k], step[k]),
-                                        unit_scale(run.params, "pressure"))
-        out.append(Event("primary_buckling", int(step[i]), float(dv[i]), ok,
-                         f"{shape[i - 1] if i else 'start'} -> {shape[i]}; {why}"))
+        if i > 0:  # a run that starts buckled (a branch) has no primary buckling of its own
+            ok, why = _primary_confirmation(
+                table, i, lambda k: _sphere_pressure(run, dv[k], step[k]),
+                unit_scale(run.params, "pressure"))
+            out.append(Event("primary_buckling", int(step[i]), float(dv[i]), ok,
+                             f"{shape[i - 1]} -> {shape[i]}; {why}"))
         lost = np.isin(shape, ("polygonal", "wrinkled"))
         j = _first_persistent(lost, i, PERSISTENCE)
-        if j is not None:
+        if j is not None and j > 0:
             corners = int(table["corners"].iloc[j]) if "corners" in table else 0
             out.append(Event("axisymmetry_loss", int(step[j]), float(dv[j]), None,
-                             f"{shape[j - 1] if j else 'start'} -> {shape[j]} with "
+                             f"{shape[j - 1]} -> {shape[j]} with "
                              f"{corners} corners"))
         j = _first_persistent(shape == "wrinkled", i, PERSISTENCE)
-        if j is not None:
+        if j is not None and j > 0:
             W = int(table["W"].iloc[j]) if "W" in table else 0
             out.append(Event("wrinkles", int(step[j]), float(dv[j]), None,
-                             f"{shape[j - 1] if j else 'start'} -> wrinkled with W = {W}"))
+                             f"{shape[j - 1]} -> wrinkled with W = {W}"))
     if "inertia" in table.columns:
         inertia = table["inertia"].to_numpy(dtype=float)
         for k in range(1, len(table)):

@@ -46,7 +46,9 @@ def _cmd(args) -> int:
     counts = table["shape"].value_counts()
     print("  shapes: " + ", ".join(f"{name} {n}" for name, n in counts.items()))
     if not found_events:
-        print("  no event (the shell stayed a sphere)")
+        print("  no event (the shell stayed a sphere)" if table["shape"].iloc[0] == "sphere"
+              else "  no event (the run starts buckled, as a branch of another run does, and "
+                   "its class does not change for good)")
     at_step = dict(zip(table["step"].astype(int), table["dV_over_V"].astype(float)))
     for e in found_events:
         note = "" if e.confirmed is None else ("  [confirmed]" if e.confirmed else "  [unconfirmed]")
