@@ -295,28 +295,18 @@ def test_a_reader_that_closes_the_pipe_ends_a_command_quietly(monkeypatch, capsy
             print("x" * 100)
         return 0
 
-    read, write = os.pipe()
-    os.close(read)  # the reader is gone: writing raises BrokenPipeError (SIGPIPE is ignored)
-    stdout = io.TextIOWrapper(io.FileIO(write, "w"), line_buffering=False)
-    monkeypatch.setattr(table, "_cmd", lots)
-    monkeypatch.setattr(sys, "stdout", stdout)
-    code = main(["table", "somewhere"])
-    monkeypatch.undo()
-    assert code == 128 + signal.SIGPIPE
-    assert capsys.readouterr().err == ""
-    stdout.close()
-
-    # a short output still in the buffer when the command returns: the same
-    read, write = os.pipe()
-    os.close(read)
-    stdout = io.TextIOWrapper(io.FileIO(write, "w"), line_buffering=False)
-    monkeypatch.setattr(table, "_cmd", lambda args: print("one short line"))
-    monkeypatch.setattr(sys, "stdout", stdout)
-    code = main(["table", "somewhere"])
-    monkeypatch.undo()
-    assert code == 128 + signal.SIGPIPE
-    assert capsys.readouterr().err == ""
-    stdout.close()
+    # a long output, and a short one still in the buffer when the command returns
+    for command in (lots, lambda args: print("one short line")):
+        read, write = os.pipe()
+        os.close(read)  # the reader is gone: writing raises BrokenPipeError (SIGPIPE ignored)
+        stdout = io.TextIOWrapper(io.FileIO(write, "w"), line_buffering=False)
+        monkeypatch.setattr(table, "_cmd", command)
+        monkeypatch.setattr(sys, "stdout", stdout)
+        code = main(["table", "somewhere"])
+        monkeypatch.undo()
+        assert code == 128 + signal.SIGPIPE
+        assert capsys.readouterr().err == ""
+        stdout.close()
 
     def broken_elsewhere(args):
         raise BrokenPipeError("a worker's connection")
