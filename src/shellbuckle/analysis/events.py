@@ -82,15 +82,14 @@ def _first_persistent(flags: np.ndarray, start: int, persistence: int) -> int | 
 
 
 def _primary_confirmation(table, i: int, sphere=None, unit: float = 1.0) -> tuple[bool, str]:
-    """Whether the first buckled step ``i`` shows the pressure drop of a buckling, and why.
+    """Whether the first buckled step ``i`` (> 0) shows the pressure drop of a buckling, and
+    why.
     ``sphere(k)``: the uniformly shrunk sphere's pressure at the volume of row ``k`` (None:
     not known). The step's pressure is compared with the sphere branch's at its volume: the
     previous step's pressure carried along the branch, ``p_(k-1) sphere(k)/sphere(k-1)``, or
     at the first step (the step before is the unloaded sphere) ``sphere(k)`` itself; without
     ``sphere``, with ``p_(k-1)``. Pressures are said in units of ``unit`` (the run's
     kappa/R^3 in its units)."""
-    if i == 0:
-        return False, "already buckled at the first step"
     prev, cur = table.iloc[i - 1], table.iloc[i]
     p0, p1 = float(prev.get("pressure", math.nan)), float(cur.get("pressure", math.nan))
     if math.isfinite(p1) and sphere is not None:
